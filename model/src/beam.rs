@@ -1,0 +1,67 @@
+//! Per-beam geometry of the fixed-beam method: barycentre and least-squares line of the points
+//! (patent claim 1 and eq. 2).
+
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+
+/// Least-squares line through a set of points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineFit {
+    /// Barycentre of the points.
+    pub centroid: Point3<f64>,
+    /// Unit direction (principal axis of the scatter), sign arbitrary.
+    pub direction: Vector3<f64>,
+    /// RMS distance of the points from the line.
+    pub lateral_rms: f64,
+}
+
+/// Fits a line to points by the principal axis of their scatter matrix.
+pub fn fit_line(points: &[Point3<f64>]) -> LineFit {
+    let n = points.len().max(1) as f64;
+    let centroid = Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n);
+    let mut s = Matrix3::zeros();
+    for p in points {
+        let d = p - centroid;
+        s += d * d.transpose();
+    }
+    let eig = SymmetricEigen::new(s);
+    let (imax, _) = eig.eigenvalues.argmax();
+    let direction = eig.eigenvectors.column(imax).into_owned().normalize();
+    // Computed directly, not as a difference of eigenvalues, which would cancel.
+    let lateral: f64 = points
+        .iter()
+        .map(|p| {
+            let d = p - centroid;
+            (d - direction * d.dot(&direction)).norm_squared()
+        })
+        .sum();
+    LineFit { centroid, direction, lateral_rms: (lateral / n).sqrt() }
+}
+
+/// Orients `direction` so that the readings `l` increase along it for the points `points`.
+pub fn orient_with_readings(direction: Vector3<f64>, points: &[Point3<f64>], l: &[f64]) -> Vector3<f64> {
+    let n = points.len().max(1) as f64;
+    let c = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let lm = l.iter().sum::<f64>() / n;
+    let cov: f64 = points.iter().zip(l).map(|(p, li)| (p.coords - c).dot(&direction) * (li - lm)).sum();
+    if cov < 0.0 {
+        -direction
+    } else {
+        direction
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_a_line() {
+        let d = Vector3::new(1.0, 2.0, -0.5).normalize();
+        let pts: Vec<Point3<f64>> = (0..10).map(|i| Point3::new(0.1, 0.2, 0.3) + d * (i as f64 * 0.05)).collect();
+        let f = fit_line(&pts);
+        assert!((f.direction.dot(&d).abs() - 1.0).abs() < 1e-12);
+        assert!(f.lateral_rms < 1e-9);
+        let l: Vec<f64> = (0..10).map(|i| -(i as f64)).collect();
+        assert!(orient_with_readings(d, &pts, &l).dot(&d) < 0.0);
+    }
+}

@@ -1,0 +1,901 @@
+//! One estimator for beams and ranges: weighted least squares with gauge constraints, solved by
+//! Gauss-Newton (Levenberg-Marquardt when ranges make it nonlinear), with full covariance.
+//!
+//! Parameters are `d = [u | Q | x]`: the error-model coefficients `u`, the tracer station
+//! positions `Q` (nuisance), and the coefficients `x` of optional [`Effect`]s (used by diagnosis).
+//! Every line group (a beam segment, a tracer path) has its own unknown additive origin (the
+//! interferometer's arbitrary zero, the tracer's dead path); it is eliminated group by group,
+//! which for beams is exactly the patent's barycentre reduction (eq. 2).
+//!
+//! Beam rows, with `n_j` the beam direction: `l_ij = n_j . (X_ij + p + e(X_ij, p; u)) + c_j`.
+//! `n_j` is the least-squares line of the current actual points and is re-estimated every
+//! iteration ("re-linearise line directions and iterate").
+//! Range rows (paper eq. 4): `l_ij = |Q_i - (X_j + p + e)| - l_i`.
+//!
+//! Linear algebra: the normal equations are assembled from sparse rows (each reading touches
+//! about 75 coefficients); the per-group origin elimination, the null-space projection of the
+//! constraints (QR), the Cholesky solve and the eigen-decomposition for identifiability are
+//! faer's, in sequential mode so the result is bit-identical run to run.
+
+use crate::beam::{fit_line, orient_with_readings};
+use crate::campaign::{LineGroup, ObsKind, Observations};
+use crate::gauge::{self, Gauge, GAUGE_DIM};
+use crate::identify::{self, Identifiability};
+use crate::model::{ErrorModel, ModelLayout, Sensitivity};
+use crate::normal;
+use crate::nullspace::NullSpace;
+use crate::range::multilaterate;
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::{Accum, Mat, Par, Side};
+use nalgebra::{Point3, Vector3};
+
+/// Standard uncertainties of the instruments, used as weights.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default))]
+pub struct NoiseModel {
+    /// Interferometer noise per abscissa, metres.
+    pub interferometer_m: f64,
+    /// Machine repeatability per axis, metres (enters every reading).
+    pub repeatability_m: f64,
+    /// Tracer noise per range, metres.
+    pub tracer_m: f64,
+    /// Tracer length-proportional noise, parts per million of the range.
+    pub tracer_ppm: f64,
+}
+
+impl Default for NoiseModel {
+    fn default() -> Self {
+        NoiseModel { interferometer_m: 0.05e-6, repeatability_m: 0.2e-6, tracer_m: 0.1e-6, tracer_ppm: 0.2 }
+    }
+}
+
+impl NoiseModel {
+    /// Standard uncertainty of one reading of `kind` at range `range_m` (tracer only).
+    pub fn sigma(&self, kind: ObsKind, range_m: f64) -> f64 {
+        let r2 = self.repeatability_m.powi(2);
+        match kind {
+            ObsKind::Beam => (self.interferometer_m.powi(2) + r2).sqrt(),
+            ObsKind::Range => (self.tracer_m.powi(2) + (self.tracer_ppm * 1e-6 * range_m).powi(2) + r2).sqrt(),
+        }
+    }
+}
+
+/// How the reported covariance is scaled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum CovarianceScaling {
+    /// From the noise model alone.
+    APriori,
+    /// Multiplied by the variance factor chi2/dof when it exceeds 1 (never optimistic).
+    #[default]
+    Birge,
+}
+
+/// Options of [`solve`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveOptions {
+    pub gauge: Gauge,
+    pub noise: NoiseModel,
+    pub max_iterations: usize,
+    /// Convergence: largest parameter step, in units of its own standard uncertainty.
+    pub tolerance: f64,
+    pub covariance_scaling: CovarianceScaling,
+    /// Eigenvalue ratio below which a direction counts as unidentifiable.
+    pub rank_tolerance: f64,
+    /// Initial station positions for tracer stations (by station id); closed-form otherwise.
+    pub initial_stations: Vec<(u32, Point3<f64>)>,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        SolveOptions {
+            gauge: Gauge::Patent,
+            noise: NoiseModel::default(),
+            max_iterations: 50,
+            tolerance: 1e-4,
+            covariance_scaling: CovarianceScaling::Birge,
+            rank_tolerance: 1e-10,
+            initial_stations: Vec::new(),
+        }
+    }
+}
+
+/// What an [`Effect`] sees of one reading.
+#[derive(Clone, Copy, Debug)]
+pub struct ObsContext<'a> {
+    pub obs: &'a Observations,
+    /// Index of the reading in `obs`.
+    pub i: usize,
+    pub group: &'a LineGroup,
+    /// Unit vector along which the reading increases: the beam direction, or from the station
+    /// towards the reflector.
+    pub direction: Vector3<f64>,
+    /// Current estimate of the actual reflector position.
+    pub actual: Point3<f64>,
+}
+
+/// A physical effect outside the rigid-body model, linear in its parameters: it adds
+/// `sum_k x_k g_k(reading)` to the predicted reading. The diagnosis catalogue implements these.
+pub trait Effect {
+    /// Stable id, e.g. `setup_drift`.
+    fn id(&self) -> &str;
+    /// Names of the parameters (with units), e.g. `drift_x_m_per_s`.
+    fn param_names(&self) -> Vec<String>;
+    /// Regressors `g_k` of one reading.
+    fn regressors(&self, ctx: &ObsContext<'_>, out: &mut [f64]);
+}
+
+/// Estimated tracer station.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StationEstimate {
+    pub station: u32,
+    pub position: Point3<f64>,
+    /// Standard uncertainty of each coordinate.
+    pub sigma: Vector3<f64>,
+}
+
+/// Residual statistics of one line group.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroupStats {
+    pub n: usize,
+    pub rms_m: f64,
+    pub max_abs_m: f64,
+    /// Beam direction (fixed-beam) or zero (ranges).
+    pub direction: Vector3<f64>,
+    /// Barycentre of the actual points.
+    pub centroid: Point3<f64>,
+    /// The eliminated origin (interferometer zero or minus the dead path).
+    pub origin_m: f64,
+}
+
+/// Residual statistics of the whole fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidualStats {
+    pub n_obs: usize,
+    pub rms_m: f64,
+    pub chi2: f64,
+    pub dof: usize,
+    /// chi2 / dof; 1 when the noise model is right.
+    pub variance_factor: f64,
+    pub per_group: Vec<GroupStats>,
+}
+
+/// Result of [`solve`].
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub model: ErrorModel,
+    /// Covariance of the model coefficients `u` (n_params x n_params).
+    pub covariance: Mat<f64>,
+    pub stations: Vec<StationEstimate>,
+    /// Effect coefficients, in the order of the effects given, with standard uncertainties.
+    pub effects: Vec<(String, Vec<(String, f64, f64)>)>,
+    /// Covariance of the effect coefficients.
+    pub effect_covariance: Mat<f64>,
+    /// Residual of every reading (reading minus prediction, origin eliminated), metres.
+    pub residuals: Vec<f64>,
+    /// Standard uncertainty of every reading from the noise model.
+    pub sigmas: Vec<f64>,
+    pub stats: ResidualStats,
+    pub identifiability: Identifiability,
+    pub iterations: usize,
+    pub converged: bool,
+    pub gauge: Gauge,
+    pub warnings: Vec<String>,
+}
+
+/// Why a solve could not produce a result.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    #[error("no observations to solve")]
+    NoObservations,
+    #[error("tracer station {station}: {reason}")]
+    Station { station: u32, reason: String },
+    #[error("the normal equations are singular even after fixing the unidentifiable directions: {0}")]
+    Singular(String),
+}
+
+/// Parameter bookkeeping of one solve.
+struct Dims {
+    n_u: usize,
+    stations: Vec<u32>,
+    n_e: usize,
+}
+
+impl Dims {
+    fn n(&self) -> usize {
+        self.n_u + 3 * self.stations.len() + self.n_e
+    }
+    fn station_col(&self, s: usize) -> usize {
+        self.n_u + 3 * s
+    }
+    fn effect_col(&self) -> usize {
+        self.n_u + 3 * self.stations.len()
+    }
+}
+
+/// Current iterate.
+#[derive(Clone)]
+struct State {
+    d: Vec<f64>,
+    /// Direction of each group (beams: line direction; ranges: unused).
+    dirs: Vec<Vector3<f64>>,
+    /// Actual reflector position of every reading at `d` (exact chain).
+    actual: Vec<Point3<f64>>,
+}
+
+/// Normal equations of one linearisation.
+struct Normal {
+    /// n x n, column-major, full symmetric.
+    n: Mat<f64>,
+    b: Vec<f64>,
+    cost: f64,
+}
+
+/// Everything that stays fixed during a solve.
+struct Problem<'a> {
+    layout: &'a ModelLayout,
+    gauge: Gauge,
+    obs: &'a Observations,
+    dims: Dims,
+    effects: &'a [&'a dyn Effect],
+    /// Station index of each group (ranges), usize::MAX for beams.
+    group_station: Vec<usize>,
+    /// Beam groups sharing a direction (same station and beam id): index of the first.
+    dir_owner: Vec<usize>,
+    sigma: Vec<f64>,
+    sens: Vec<Sensitivity>,
+    /// Per-axis basis spans of every reading, when all six functions of each axis share one
+    /// representation (the usual case): enables the tiled normal-matrix kernel.
+    structure: Option<Structure>,
+}
+
+/// Per reading and axis: first coefficient, basis values and lever arm.
+struct Structure {
+    k: [usize; 3],
+    first: Vec<[usize; 3]>,
+    bvals: Vec<f64>,
+    lever: Vec<[Vector3<f64>; 3]>,
+}
+
+impl Structure {
+    fn new(layout: &ModelLayout, obs: &Observations) -> Option<Structure> {
+        use crate::axis::Axis;
+        if !Axis::ALL.iter().all(|&a| layout.shares_basis(a)) {
+            return None;
+        }
+        let k = Axis::ALL.map(|a| {
+            layout.bases[a.index() * 6].n_coeffs().min(match layout.bases[a.index() * 6].repr {
+                crate::repr::Representation::Table { .. } => 2,
+                crate::repr::Representation::BSpline { .. } => 4,
+                _ => usize::MAX,
+            })
+        });
+        let kt: usize = k.iter().sum();
+        let mut first = Vec::with_capacity(obs.len());
+        let mut bvals = Vec::with_capacity(obs.len() * kt);
+        let mut lever = Vec::with_capacity(obs.len());
+        let mut buf = Vec::new();
+        for i in 0..obs.len() {
+            let mut fi = [0; 3];
+            for a in Axis::ALL {
+                layout.bases[a.index() * 6].eval_into(a.coord(&obs.x[i]), false, &mut buf);
+                // Non-zero basis functions are consecutive in every representation.
+                debug_assert!(buf.windows(2).all(|w| w[1].0 == w[0].0 + 1) && buf.len() == k[a.index()]);
+                fi[a.index()] = buf[0].0;
+                bvals.extend(buf.iter().map(|&(_, v)| v));
+            }
+            first.push(fi);
+            lever.push(Axis::ALL.map(|a| layout.topology.lever_arm(a, &obs.x[i], &obs.p[i])));
+        }
+        Some(Structure { k, first, bvals, lever })
+    }
+
+    fn b(&self, i: usize, a: usize) -> &[f64] {
+        let kt: usize = self.k.iter().sum();
+        let start = i * kt + self.k[..a].iter().sum::<usize>();
+        &self.bvals[start..start + self.k[a]]
+    }
+}
+
+/// Estimates the error model from prepared observations.
+pub fn solve(
+    layout: &ModelLayout,
+    obs: &Observations,
+    opts: &SolveOptions,
+    effects: &[&dyn Effect],
+) -> Result<Solution, SolveError> {
+    if obs.is_empty() || obs.groups.is_empty() {
+        return Err(SolveError::NoObservations);
+    }
+    let stations = obs.stations(ObsKind::Range);
+    let n_e: usize = effects.iter().map(|e| e.param_names().len()).sum();
+    let dims = Dims { n_u: layout.n_params, stations: stations.clone(), n_e };
+    let group_station: Vec<usize> =
+        obs.groups
+            .iter()
+            .map(|g| {
+                if g.kind == ObsKind::Range {
+                    stations.iter().position(|&s| s == g.station).unwrap()
+                } else {
+                    usize::MAX
+                }
+            })
+            .collect();
+    let dir_owner: Vec<usize> = (0..obs.groups.len())
+        .map(|k| {
+            let g = &obs.groups[k];
+            (0..=k)
+                .find(|&j| {
+                    obs.groups[j].kind == g.kind && obs.groups[j].station == g.station && obs.groups[j].line == g.line
+                })
+                .unwrap()
+        })
+        .collect();
+    let structure = Structure::new(layout, obs);
+    // Generic sparse sensitivities, only needed when some axis mixes representations.
+    let sens: Vec<Sensitivity> = if structure.is_some() {
+        Vec::new()
+    } else {
+        (0..obs.len()).map(|i| layout.sensitivity(&obs.x[i], &obs.p[i])).collect()
+    };
+
+    let mut warnings = Vec::new();
+    // Initial state: zero errors, closed-form stations.
+    let mut d = vec![0.0; dims.n()];
+    let mut ranges_at_init = vec![0.0; obs.len()];
+    for (s, &st) in stations.iter().enumerate() {
+        let given = opts.initial_stations.iter().find(|(id, _)| *id == st).map(|(_, q)| *q);
+        let q = match given {
+            Some(q) => q,
+            None => init_station(obs, st)?,
+        };
+        for k in 0..3 {
+            d[dims.station_col(s) + k] = q[k];
+        }
+        for (_, g) in obs.groups_of(ObsKind::Range).filter(|(_, g)| g.station == st) {
+            for i in g.range() {
+                ranges_at_init[i] = (q - (obs.x[i] + obs.p[i])).norm();
+            }
+        }
+    }
+    let sigma: Vec<f64> = (0..obs.len())
+        .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
+        .collect();
+    let prob =
+        Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, sens, structure };
+    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new() };
+    update_directions(&prob, &mut state);
+
+    // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
+    let n = prob.dims.n();
+    let mut cons = embed(&gauge::constraints(layout, opts.gauge), n);
+    let first = assemble(&prob, &state, true);
+    let scale = column_scale(&first.n);
+    let mut z = NullSpace::new(&cons, &scale);
+    let m0 = reduced_matrix(&first, &z, &scale);
+    let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &z, &scale, opts.rank_tolerance);
+    let mut first_reduced = None;
+    if ident.extra_constraints.nrows() > 0 {
+        cons = stack_rows(&cons, &ident.extra_constraints);
+        z = NullSpace::new(&cons, &scale);
+    } else {
+        first_reduced = Some(m0);
+    }
+    warnings.extend(ident.report.warnings.iter().cloned());
+
+    let nonlinear = !stations.is_empty();
+    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
+    let mut normal = first;
+    let mut converged = false;
+    let mut iterations = 0;
+    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
+    // so for beam-only problems the normal matrix of the first linearisation is kept and only
+    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
+    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
+    let mut frozen: Option<Reduced> = None;
+    for it in 0..opts.max_iterations {
+        iterations = it + 1;
+        let step = if nonlinear {
+            reduced_step(&Reduced::new(&normal, &z, &scale, mu)?, &normal, &z, &scale)
+        } else {
+            if frozen.is_none() {
+                frozen = Some(match first_reduced.take() {
+                    Some(m) => Reduced::from_matrix(m, 0.0)?,
+                    None => Reduced::new(&normal, &z, &scale, 0.0)?,
+                });
+            }
+            reduced_step(frozen.as_ref().unwrap(), &normal, &z, &scale)
+        };
+        let mut trial = state.clone();
+        for k in 0..n {
+            trial.d[k] += step.delta[k];
+        }
+        update_directions(&prob, &mut trial);
+        let trial_normal = if nonlinear {
+            assemble(&prob, &trial, true)
+        } else {
+            let g = assemble(&prob, &trial, false);
+            Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
+        };
+        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+            mu = (mu * 10.0).max(1e-6);
+            if mu > 1e12 {
+                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
+                break;
+            }
+            continue;
+        }
+        mu *= 0.1;
+        if std::env::var_os("VOLCAL_TRACE").is_some() {
+            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
+        }
+        state = trial;
+        normal = trial_normal;
+        if step.max_sigma_ratio < opts.tolerance {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        warnings.push(format!("the estimator did not converge in {} iterations", iterations));
+    }
+
+    // Covariance and statistics at the solution. For beam-only problems the normal matrix is
+    // the frozen one: its rows differ from those at the solution only through the change of
+    // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
+    // by a relative amount of the same order, far below the precision to which it is reported.
+    let final_res = residuals(&prob, &state);
+    let cov_scaled = reduced_covariance(&normal, &z, &scale)?;
+    let n_obs = obs.len();
+    let n_free = z.dim();
+    let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
+    let chi2 = normal.cost;
+    let vf = chi2 / dof as f64;
+    let factor = match opts.covariance_scaling {
+        CovarianceScaling::APriori => 1.0,
+        CovarianceScaling::Birge => vf.max(1.0),
+    };
+    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * factor);
+
+    let n_u = layout.n_params;
+    let covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
+    let stations_out = stations
+        .iter()
+        .enumerate()
+        .map(|(s, &st)| {
+            let c = prob.dims.station_col(s);
+            StationEstimate {
+                station: st,
+                position: Point3::new(state.d[c], state.d[c + 1], state.d[c + 2]),
+                sigma: Vector3::new(
+                    cov_full[(c, c)].sqrt(),
+                    cov_full[(c + 1, c + 1)].sqrt(),
+                    cov_full[(c + 2, c + 2)].sqrt(),
+                ),
+            }
+        })
+        .collect();
+    let e0 = prob.dims.effect_col();
+    let effect_covariance = cov_full.submatrix(e0, e0, n_e, n_e).to_owned();
+    let mut effects_out = Vec::new();
+    let mut k = e0;
+    for e in effects {
+        let mut ps = Vec::new();
+        for name in e.param_names() {
+            ps.push((name, state.d[k], cov_full[(k, k)].sqrt()));
+            k += 1;
+        }
+        effects_out.push((e.id().to_string(), ps));
+    }
+    let per_group = obs
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(gi, g)| {
+            let r = &final_res.residual[g.range()];
+            let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
+            let pts: Vec<Point3<f64>> = g.range().map(|i| actual_point(&prob, &state, i)).collect();
+            GroupStats {
+                n: g.len(),
+                rms_m: rms,
+                max_abs_m: r.iter().fold(0.0, |m, v| m.max(v.abs())),
+                direction: if g.kind == ObsKind::Beam { state.dirs[gi] } else { Vector3::zeros() },
+                centroid: fit_line(&pts).centroid,
+                origin_m: final_res.origin[gi],
+            }
+        })
+        .collect();
+    let rms = (final_res.residual.iter().map(|v| v * v).sum::<f64>() / n_obs as f64).sqrt();
+    let model = ErrorModel { layout: layout.clone(), u: state.d[..n_u].to_vec() };
+    Ok(Solution {
+        model,
+        covariance,
+        stations: stations_out,
+        effects: effects_out,
+        effect_covariance,
+        residuals: final_res.residual,
+        sigmas: prob.sigma.clone(),
+        stats: ResidualStats { n_obs, rms_m: rms, chi2, dof, variance_factor: vf, per_group },
+        identifiability: ident.report,
+        iterations,
+        converged,
+        gauge: opts.gauge,
+        warnings,
+    })
+}
+
+fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {
+    let mut pts = Vec::new();
+    let mut ls = Vec::new();
+    // Each path has its own dead path; use the path with most points for the closed form.
+    let groups: Vec<&LineGroup> =
+        obs.groups_of(ObsKind::Range).filter(|(_, g)| g.station == st).map(|(_, g)| g).collect();
+    let best = groups.iter().max_by_key(|g| g.len()).unwrap();
+    for i in best.range() {
+        pts.push(obs.x[i] + obs.p[i]);
+        ls.push(obs.l[i]);
+    }
+    multilaterate(&pts, &ls).map(|s| s.position).ok_or_else(|| SolveError::Station {
+        station: st,
+        reason: format!("its {} points do not determine a position (at least 5 points, not coplanar, are needed for the closed-form start)", pts.len()),
+    })
+}
+
+/// Summary of the data that the identifiability report needs.
+fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
+    let mut offsets: Vec<Vector3<f64>> = Vec::new();
+    for g in &p.obs.groups {
+        let v = p.obs.p[g.start];
+        if !offsets.iter().any(|o| (o - v).norm() < 1e-6) {
+            offsets.push(v);
+        }
+    }
+    identify::DataSummary {
+        gauge: p.gauge,
+        probe_offsets: offsets,
+        n_beams: p.obs.groups_of(ObsKind::Beam).count(),
+        n_stations: p.dims.stations.len(),
+        n_effect_params: p.dims.n_e,
+        effect_col: p.dims.effect_col(),
+        station_col: p.dims.n_u,
+    }
+}
+
+/// Actual reflector position of reading `i` at the current iterate.
+fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
+    s.actual[i]
+}
+
+/// Recomputes the actual reflector positions by the exact kinematic chain (the small-angle
+/// sensitivity serves as the Jacobian only) and re-estimates the beam directions from them
+/// (patent: the least-squares line of the machine points).
+fn update_directions(p: &Problem<'_>, s: &mut State) {
+    let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
+    s.actual = (0..p.obs.len()).map(|i| chain.position(&p.obs.x[i], &p.obs.p[i])).collect();
+    for (gi, g) in p.obs.groups.iter().enumerate() {
+        if g.kind != ObsKind::Beam || p.dir_owner[gi] != gi {
+            continue;
+        }
+        let members: Vec<usize> = (0..p.obs.groups.len()).filter(|&k| p.dir_owner[k] == gi).collect();
+        let mut pts = Vec::new();
+        let mut ls = Vec::new();
+        for &k in &members {
+            let gk = &p.obs.groups[k];
+            // Readings of different segments have different origins: centre each segment.
+            let seg_pts: Vec<Point3<f64>> = gk.range().map(|i| actual_point(p, s, i)).collect();
+            let lm = p.obs.l[gk.range()].iter().sum::<f64>() / gk.len() as f64;
+            let c = seg_pts.iter().map(|q| q.coords).sum::<Vector3<f64>>() / gk.len() as f64;
+            for (j, i) in gk.range().enumerate() {
+                pts.push(Point3::from(seg_pts[j].coords - c));
+                ls.push(p.obs.l[i] - lm);
+            }
+        }
+        let dir = orient_with_readings(fit_line(&pts).direction, &pts, &ls);
+        for &k in &members {
+            s.dirs[k] = dir;
+        }
+    }
+}
+
+/// Direction along which reading `i` of group `gi` increases, and its predicted value (without
+/// the group origin).
+fn predict_reading(p: &Problem<'_>, s: &State, gi: usize, i: usize) -> (Vector3<f64>, f64, Point3<f64>) {
+    let pa = actual_point(p, s, i);
+    match p.obs.groups[gi].kind {
+        ObsKind::Beam => {
+            let n = s.dirs[gi];
+            (n, n.dot(&pa.coords), pa)
+        }
+        ObsKind::Range => {
+            let c = p.dims.station_col(p.group_station[gi]);
+            let q = Point3::new(s.d[c], s.d[c + 1], s.d[c + 2]);
+            let v = pa - q;
+            let r = v.norm();
+            (v / r, r, pa)
+        }
+    }
+}
+
+/// Builds the sparse row of reading `i` (sorted column indices); returns its residual and the
+/// direction along which the reading increases.
+fn row(
+    p: &Problem<'_>,
+    s: &State,
+    gi: usize,
+    i: usize,
+    idx: &mut Vec<usize>,
+    val: &mut Vec<f64>,
+    ebuf: &mut Vec<f64>,
+) -> (f64, Vector3<f64>) {
+    idx.clear();
+    val.clear();
+    let (dir, mut f, actual) = predict_reading(p, s, gi, i);
+    match &p.structure {
+        Some(st) => {
+            // Row = sum over axes of (n, h x n) (x) basis values: n . de/du without forming de/du.
+            for a in 0..3 {
+                let hn = st.lever[i][a].cross(&dir);
+                let d = [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z];
+                let b = st.b(i, a);
+                let first = st.first[i][a];
+                for (f, &df) in d.iter().enumerate() {
+                    let col = p.layout.offsets[a * 6 + f] + first;
+                    for (k, &bk) in b.iter().enumerate() {
+                        idx.push(col + k);
+                        val.push(df * bk);
+                    }
+                }
+            }
+            let x = &p.obs.x[i];
+            for sq in crate::functions::Squareness::ALL {
+                idx.push(p.layout.squareness_index(sq));
+                val.push(dir.dot(&sq.direction_per_metre()) * sq.axis().coord(x));
+            }
+        }
+        None => {
+            for (k, v) in p.sens[i].project(&dir) {
+                idx.push(k);
+                val.push(v);
+            }
+        }
+    }
+    let g = &p.obs.groups[gi];
+    if g.kind == ObsKind::Range {
+        let c = p.dims.station_col(p.group_station[gi]);
+        for k in 0..3 {
+            idx.push(c + k);
+            val.push(-dir[k]);
+        }
+    }
+    if p.dims.n_e > 0 {
+        let ctx = ObsContext { obs: p.obs, i, group: g, direction: dir, actual };
+        let mut col = p.dims.effect_col();
+        for e in p.effects {
+            let m = e.param_names().len();
+            ebuf.clear();
+            ebuf.resize(m, 0.0);
+            e.regressors(&ctx, ebuf);
+            for &v in ebuf.iter() {
+                f += v * s.d[col];
+                idx.push(col);
+                val.push(v);
+                col += 1;
+            }
+        }
+    }
+    (p.obs.l[i] - f, dir)
+}
+
+/// Assembles the normal equations, eliminating each group's origin. Residuals are centred per
+/// group before they enter `b` and the cost, so the large arbitrary origins of the readings never
+/// meet the small residuals in one sum.
+fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
+    let n = p.dims.n();
+    let ng = p.obs.groups.len();
+    let mut upper = normal::Upper::new(if with_matrix { n } else { 0 });
+    let mut b = vec![0.0; n];
+    // Weighted column sums per group, scaled by 1/sqrt(W): N -= S S^T.
+    let mut smat = if with_matrix { Mat::<f64>::zeros(n, ng) } else { Mat::zeros(0, 0) };
+    let mut gsum = vec![0.0; n];
+    let mut touched: Vec<usize> = Vec::new();
+    let (mut idx, mut val, mut ebuf) = (Vec::with_capacity(128), Vec::with_capacity(128), Vec::new());
+    // Rows of the current group: (start offset into idx/val buffers, residual, weight).
+    let mut rows: Vec<(usize, usize, f64, f64)> = Vec::new();
+    let mut runs: Vec<normal::Run> = Vec::new();
+    let mut tmp_runs: Vec<normal::Run> = Vec::new();
+    let mut batch: Vec<(f64, std::ops::Range<usize>)> = Vec::new();
+    let mut srows: Vec<normal::StructuredRow<'_>> = Vec::new();
+    let mut rowobs: Vec<usize> = Vec::new();
+    let mut dirs_of_rows: Vec<Vector3<f64>> = Vec::new();
+    let (mut gidx, mut gval): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
+    let mut cost = 0.0;
+    for (gi, g) in p.obs.groups.iter().enumerate() {
+        rows.clear();
+        gidx.clear();
+        gval.clear();
+        let (mut wsum, mut wr) = (0.0, 0.0);
+        rowobs.clear();
+        dirs_of_rows.clear();
+        let mut rows_seen = 0usize;
+        for i in g.range() {
+            let (r, dir) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            rowobs.push(i);
+            dirs_of_rows.push(dir);
+            rows.push((gidx.len(), idx.len(), r, w));
+            gidx.extend_from_slice(&idx);
+            gval.extend_from_slice(&val);
+            wsum += w;
+            wr += w * r;
+        }
+        let rm = wr / wsum;
+        for &(start, len, r, w) in &rows {
+            let rc = r - rm;
+            cost += w * rc * rc;
+            let ri = &gidx[start..start + len];
+            let rv = &gval[start..start + len];
+            for a in 0..len {
+                b[ri[a]] += w * rv[a] * rc;
+            }
+            if !with_matrix {
+                continue;
+            }
+            for a in 0..len {
+                let ia = ri[a];
+                if gsum[ia] == 0.0 {
+                    touched.push(ia);
+                }
+                gsum[ia] += w * rv[a];
+            }
+            if let Some(st) = &p.structure {
+                let i = rowobs[rows_seen];
+                let dir = dirs_of_rows[rows_seen];
+                let n_sq = p.layout.n_params - 3;
+                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| {
+                    let h = st.lever[i][a];
+                    let hn = h.cross(&dir);
+                    normal::AxisSegment {
+                        col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
+                        d: [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z],
+                        b: st.b(i, a),
+                    }
+                });
+                let extras: Vec<(usize, f64)> =
+                    ri.iter().zip(rv).filter(|(&c, _)| c >= n_sq).map(|(&c, &v)| (c, v)).collect();
+                srows.push(normal::StructuredRow { w, axes, extras });
+            } else {
+                let r0 = runs.len();
+                normal::runs_of(ri, &mut tmp_runs);
+                runs.extend(tmp_runs.iter().map(|r| normal::Run { at: r.at + start, ..*r }));
+                batch.push((w, r0..runs.len()));
+            }
+            rows_seen += 1;
+        }
+        if with_matrix {
+            if p.structure.is_some() {
+                upper.add_structured_batch(&srows);
+                srows.clear();
+            } else {
+                upper.add_batch(&batch, &runs, &gval);
+                batch.clear();
+                runs.clear();
+            }
+        }
+        if with_matrix {
+            let sw = wsum.sqrt();
+            for &k in &touched {
+                smat[(k, gi)] = gsum[k] / sw;
+                gsum[k] = 0.0;
+            }
+            touched.clear();
+        }
+    }
+    if !with_matrix {
+        return Normal { n: Mat::zeros(0, 0), b, cost };
+    }
+    let mut nm = upper.to_mat();
+    matmul(nm.as_mut(), Accum::Add, smat.as_ref(), smat.transpose(), -1.0, Par::Seq);
+    Normal { n: nm, b, cost }
+}
+
+/// Centred residuals and group origins at a state.
+struct Residuals {
+    residual: Vec<f64>,
+    origin: Vec<f64>,
+}
+
+fn residuals(p: &Problem<'_>, s: &State) -> Residuals {
+    let mut residual = vec![0.0; p.obs.len()];
+    let mut origin = vec![0.0; p.obs.groups.len()];
+    let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
+    for (gi, g) in p.obs.groups.iter().enumerate() {
+        let mut wsum = 0.0;
+        let mut wr = 0.0;
+        for i in g.range() {
+            let (r, _) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            residual[i] = r;
+            wsum += w;
+            wr += w * r;
+        }
+        let rm = wr / wsum;
+        origin[gi] = rm;
+        for i in g.range() {
+            residual[i] -= rm;
+        }
+    }
+    Residuals { residual, origin }
+}
+
+/// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
+fn column_scale(n: &Mat<f64>) -> Vec<f64> {
+    (0..n.nrows()).map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt() } else { 1.0 }).collect()
+}
+
+/// Embeds a constraint block on `u` into the full parameter space.
+fn embed(c: &Mat<f64>, n: usize) -> Mat<f64> {
+    Mat::from_fn(c.nrows(), n, |i, j| if j < c.ncols() { c[(i, j)] } else { 0.0 })
+}
+
+fn stack_rows(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    Mat::from_fn(a.nrows() + b.nrows(), a.ncols(), |i, j| if i < a.nrows() { a[(i, j)] } else { b[(i - a.nrows(), j)] })
+}
+
+struct Step {
+    delta: Vec<f64>,
+    /// Largest |step| relative to the parameter's standard uncertainty.
+    max_sigma_ratio: f64,
+}
+
+/// Reduced matrix `Z^T N_s Z` in scaled coordinates.
+fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
+    let n = scale.len();
+    let ns = Mat::from_fn(n, n, |i, j| normal.n[(i, j)] / (scale[i] * scale[j]));
+    z.project(&ns)
+}
+
+/// Cholesky factor of the (damped) reduced matrix.
+struct Reduced {
+    llt: faer::linalg::solvers::Llt<f64>,
+}
+
+impl Reduced {
+    fn new(normal: &Normal, z: &NullSpace, scale: &[f64], mu: f64) -> Result<Reduced, SolveError> {
+        Reduced::from_matrix(reduced_matrix(normal, z, scale), mu)
+    }
+
+    fn from_matrix(mut m: Mat<f64>, mu: f64) -> Result<Reduced, SolveError> {
+        if mu > 0.0 {
+            for i in 0..m.nrows() {
+                let d = m[(i, i)];
+                m[(i, i)] = d + mu * d.max(1e-12);
+            }
+        }
+        let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
+        Ok(Reduced { llt })
+    }
+}
+
+fn reduced_step(red: &Reduced, normal: &Normal, z: &NullSpace, scale: &[f64]) -> Step {
+    let n = scale.len();
+    let bs = Mat::from_fn(n, 1, |i, _| normal.b[i] / scale[i]);
+    let mut y = z.zt(&bs);
+    red.llt.solve_in_place(y.as_mut());
+    let ds = z.z(&y);
+    // In scaled coordinates a unit step is one conditional standard uncertainty.
+    let max_ratio = (0..n).map(|i| ds[(i, 0)].abs()).fold(0.0, f64::max);
+    Step { delta: (0..n).map(|i| ds[(i, 0)] / scale[i]).collect(), max_sigma_ratio: max_ratio }
+}
+
+/// Covariance in scaled coordinates: `Z (Z^T N_s Z)^-1 Z^T`.
+fn reduced_covariance(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Result<Mat<f64>, SolveError> {
+    let m = reduced_matrix(normal, z, scale);
+    let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
+    Ok(z.embed(&llt.inverse()))
+}
+
+/// Number of gauge freedoms (re-exported for reports).
+pub const GAUGE_FREEDOMS: usize = GAUGE_DIM;

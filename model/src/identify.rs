@@ -1,0 +1,393 @@
+//! Identifiability: what the data determine, what the gauge fixes, and what is left undetermined.
+//!
+//! The analysis works on the normal matrix `N = J^T W J` with Jacobi scaling. It
+//! 1. checks that the gauge constraints `C` fix exactly the 24 analytic gauge freedoms (`C N_g`
+//!    non-singular) and that the data indeed do not observe them (Schur complement of `N` onto the
+//!    model coefficients, evaluated along each freedom);
+//! 2. takes the eigen-decomposition (the SVD of the scaled design) of `N` restricted to
+//!    `C u = 0`; eigenvalues below `tol * max` span what the data cannot determine;
+//! 3. groups that null space by function with the basis-independent projector `W W^T`: a function
+//!    whose columns are all zero is *not observed*; functions coupled through the projector are
+//!    only determined *in combination*;
+//! 4. returns extra constraints that set the undetermined directions to zero (the minimum-norm
+//!    choice), so the solve still returns everything the data do determine.
+
+use crate::functions::{ErrorFunction, Motion, Squareness};
+use crate::gauge::{self, GAUGE_DIM};
+use crate::model::{ModelLayout, ParamOwner};
+use faer::linalg::solvers::DenseSolveCore;
+use faer::{Mat, Side};
+use nalgebra::Vector3;
+
+/// Facts about the data used to phrase the report.
+#[derive(Clone, Debug, Default)]
+pub struct DataSummary {
+    pub gauge: gauge::Gauge,
+    pub probe_offsets: Vec<Vector3<f64>>,
+    pub n_beams: usize,
+    pub n_stations: usize,
+    pub n_effect_params: usize,
+    pub effect_col: usize,
+    pub station_col: usize,
+}
+
+/// The identifiability report of a solve.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Identifiability {
+    /// Model coefficients.
+    pub n_params: usize,
+    /// Nuisance and effect parameters (stations, effects).
+    pub n_other: usize,
+    /// Gauge freedoms fixed by the constraints.
+    pub gauge_dim: usize,
+    /// Further directions the data do not determine.
+    pub extra_null_dim: usize,
+    /// Rank of the design: parameters minus gauge minus extra null space.
+    pub rank: usize,
+    /// Condition number of the determined part (scaled).
+    pub condition_number: f64,
+    /// Smallest/largest singular value of `C N_g` (0 = constraints do not fix the gauge).
+    pub constraint_conditioning: f64,
+    /// Largest observability of a gauge freedom relative to the best-observed direction
+    /// (should be ~0; large values mean the gauge constraint biases real information).
+    pub gauge_observability: f64,
+    /// Functions the data do not observe at all.
+    pub not_observed: Vec<String>,
+    /// Groups of functions (or effect parameters) determined only in combination.
+    pub combinations: Vec<Vec<String>>,
+    /// Error functions (of 21: 18 + 3 squareness) that are identified individually.
+    pub identified_functions: usize,
+    /// Plain statements for the report.
+    pub statements: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+/// Output of [`analyse`].
+pub(crate) struct Analysis {
+    pub report: Identifiability,
+    /// Rows to append to the constraints (empty when everything is identifiable).
+    pub extra_constraints: Mat<f64>,
+}
+
+/// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
+/// reported as observed by the data.
+const GAUGE_OBSERVED: f64 = 1e-6;
+
+/// Label of a parameter column beyond the model coefficients.
+fn other_label(summary: &DataSummary, k: usize) -> String {
+    if k >= summary.effect_col {
+        format!("effect parameter {}", k - summary.effect_col)
+    } else {
+        format!("station {} coordinate", (k - summary.station_col) / 3)
+    }
+}
+
+/// Runs the analysis on normal matrix `n` (all parameters), given the reduced scaled matrix
+/// `m = Z^T N_s Z` on the gauge-constrained subspace with orthonormal basis `z` (scaled
+/// coordinates) and the Jacobi scaling `scale`.
+pub(crate) fn analyse(
+    layout: &ModelLayout,
+    summary: &DataSummary,
+    n: &Mat<f64>,
+    m: &Mat<f64>,
+    z: &crate::nullspace::NullSpace,
+    scale: &[f64],
+    tol: f64,
+) -> Analysis {
+    let gauge_basis = gauge::null_basis(layout);
+    let cons = gauge::constraints(layout, summary.gauge);
+    let dim = n.nrows();
+    let n_u = layout.n_params;
+    let mut report = Identifiability { n_params: n_u, n_other: dim - n_u, gauge_dim: GAUGE_DIM, ..Default::default() };
+    report.constraint_conditioning = gauge::conditioning_of(&cons, &gauge_basis);
+
+    // Eigenvalues first (the singular values of the scaled, constrained design, squared);
+    // eigenvectors only when something is undetermined.
+    let lam = match m.self_adjoint_eigenvalues(Side::Lower) {
+        Ok(l) => l,
+        Err(e) => {
+            report.warnings.push(format!("identifiability analysis failed: {e:?}"));
+            return Analysis { report, extra_constraints: Mat::zeros(0, dim) };
+        }
+    };
+    let lmax = lam.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let null_count = lam.iter().filter(|&&l| l < tol * lmax).count();
+    let kept_min = lam.iter().cloned().filter(|&l| l >= tol * lmax).fold(f64::MAX, f64::min);
+    report.condition_number = if kept_min < f64::MAX { (lmax / kept_min).sqrt() } else { f64::INFINITY };
+    report.extra_null_dim = null_count;
+    report.rank = z.dim() - null_count;
+
+    let mut w = Mat::<f64>::zeros(dim, 0);
+    if null_count > 0 {
+        match m.self_adjoint_eigen(Side::Lower) {
+            Ok(eig) => {
+                // Eigenvalues ascend: the first `null_count` vectors span the null space.
+                // W = Z V_null has orthonormal columns in scaled full coordinates.
+                let v = eig.U().subcols(0, null_count).to_owned();
+                w = z.z(&v);
+            }
+            Err(e) => report.warnings.push(format!("identifiability analysis failed: {e:?}")),
+        }
+    }
+    let extra = Mat::from_fn(w.ncols(), dim, |r, k| w[(k, r)] * scale[k]);
+
+    gauge_check(layout, n, lmax, &gauge_basis, &mut report);
+    describe(layout, summary, n, &w, &mut report);
+    Analysis { report, extra_constraints: extra }
+}
+
+/// How strongly the data observe each analytic gauge freedom, after the nuisance parameters
+/// (stations, effects) have absorbed what they can.
+fn gauge_check(layout: &ModelLayout, n: &Mat<f64>, lmax: f64, g: &Mat<f64>, report: &mut Identifiability) {
+    let n_u = layout.n_params;
+    let dim = n.nrows();
+    let nuu = n.submatrix(0, 0, n_u, n_u).to_owned();
+    let schur = if dim > n_u {
+        let k = dim - n_u;
+        let nss = n.submatrix(n_u, n_u, k, k).to_owned();
+        let ridge = (0..k).map(|i| nss[(i, i)]).fold(0.0, f64::max) * 1e-12 + f64::MIN_POSITIVE;
+        let nss = Mat::from_fn(k, k, |i, j| nss[(i, j)] + if i == j { ridge } else { 0.0 });
+        match nss.llt(Side::Lower) {
+            Ok(llt) => {
+                let inv = llt.inverse();
+                let nus = n.submatrix(0, n_u, n_u, k);
+                &nuu - nus * &inv * nus.transpose()
+            }
+            Err(_) => nuu,
+        }
+    } else {
+        nuu
+    };
+    let sc: Vec<f64> = (0..n_u).map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt() } else { 1.0 }).collect();
+    let ss = Mat::from_fn(n_u, n_u, |i, j| schur[(i, j)] / (sc[i] * sc[j]));
+    let names = gauge_freedom_names();
+    let mut worst: f64 = 0.0;
+    for c in 0..GAUGE_DIM {
+        let v: Vec<f64> = (0..n_u).map(|k| g[(k, c)] * sc[k]).collect();
+        let nv = v.iter().map(|x| x * x).sum::<f64>();
+        if nv == 0.0 {
+            continue;
+        }
+        let mut q = 0.0;
+        for i in 0..n_u {
+            if v[i] == 0.0 {
+                continue;
+            }
+            for j in 0..n_u {
+                q += v[i] * ss[(i, j)] * v[j];
+            }
+        }
+        let ratio = (q / nv / lmax).max(0.0);
+        worst = worst.max(ratio);
+        if ratio > GAUGE_OBSERVED {
+            report.warnings.push(format!(
+                "the data observe the gauge freedom '{}' (relative eigenvalue {ratio:.1e}); the gauge constraint overrides real information there (e.g. the probe offset changes within a line)",
+                names[c]
+            ));
+        }
+    }
+    report.gauge_observability = worst;
+}
+
+/// Names of the 24 gauge freedoms in the order of [`gauge::null_basis`].
+pub fn gauge_freedom_names() -> Vec<String> {
+    let mut v = Vec::new();
+    for a in ['X', 'Y', 'Z'] {
+        for c in ['X', 'Y', 'Z'] {
+            v.push(format!("constant E{c}{a}"));
+        }
+    }
+    for a in ['X', 'Y', 'Z'] {
+        for c in ['A', 'B', 'C'] {
+            v.push(format!("constant E{c}{a}"));
+        }
+    }
+    for c in ['X', 'Y', 'Z'] {
+        v.push(format!("rigid rotation about {c}"));
+    }
+    for s in Squareness::ALL {
+        v.push(format!("{} versus straightness slope", s.name()));
+    }
+    v
+}
+
+/// Identifies which functions the null space `w` (scaled, orthonormal columns) involves.
+fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f64>, report: &mut Identifiability) {
+    let dim = n.nrows();
+    let n_u = layout.n_params;
+    // Units: the owner of each column; squareness folds with the others.
+    #[derive(Clone, PartialEq)]
+    enum Unit {
+        F(ErrorFunction),
+        S(Squareness),
+        Other(String),
+    }
+    let unit_of = |k: usize| -> Unit {
+        if k < n_u {
+            match layout.owner(k) {
+                ParamOwner::Function(f, _) => Unit::F(f),
+                ParamOwner::Squareness(s) => Unit::S(s),
+            }
+        } else {
+            Unit::Other(other_label(summary, k))
+        }
+    };
+    let mut units: Vec<Unit> = Vec::new();
+    let mut cols: Vec<Vec<usize>> = Vec::new();
+    for k in 0..dim {
+        let u = unit_of(k);
+        match units.iter().position(|x| *x == u) {
+            Some(p) => cols[p].push(k),
+            None => {
+                units.push(u);
+                cols.push(vec![k]);
+            }
+        }
+    }
+    let desc = |u: &Unit| match u {
+        Unit::F(f) => f.describe(),
+        Unit::S(s) => s.describe().to_string(),
+        Unit::Other(s) => s.clone(),
+    };
+    let name = |u: &Unit| match u {
+        Unit::F(f) => f.name(),
+        Unit::S(s) => s.name().to_string(),
+        Unit::Other(s) => s.clone(),
+    };
+    // Not observed: every column of the unit is zero.
+    let dmax = (0..dim).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
+    let unobserved: Vec<bool> =
+        cols.iter().map(|c| c.iter().all(|&k| n[(k, k)].abs() <= 1e-300_f64.max(dmax * 1e-28))).collect();
+    // Involvement of each unit in the null space: trace of its diagonal block of W W^T.
+    let k = w.ncols();
+    let block = |a: &[usize], b: &[usize]| -> f64 {
+        // Frobenius norm of W_a W_b^T = sqrt(trace(W_a^T W_a W_b^T W_b)).
+        let wa = Mat::from_fn(a.len(), k, |i, j| w[(a[i], j)]);
+        let wb = Mat::from_fn(b.len(), k, |i, j| w[(b[i], j)]);
+        let ga = wa.transpose() * &wa;
+        let gb = wb.transpose() * &wb;
+        let mut t = 0.0;
+        for i in 0..k {
+            for j in 0..k {
+                t += ga[(i, j)] * gb[(j, i)];
+            }
+        }
+        t.max(0.0).sqrt()
+    };
+    let involvement: Vec<f64> = cols.iter().map(|c| if k == 0 { 0.0 } else { block(c, c) }).collect();
+    let involved: Vec<usize> = (0..units.len()).filter(|&i| involvement[i] > 0.05).collect();
+    // Coupling between involved, observed units.
+    let coupled: Vec<usize> = involved.iter().cloned().filter(|&i| !unobserved[i]).collect();
+    let mut parent: Vec<usize> = (0..units.len()).collect();
+    fn find(p: &mut Vec<usize>, i: usize) -> usize {
+        if p[i] != i {
+            let r = find(p, p[i]);
+            p[i] = r;
+        }
+        p[i]
+    }
+    for a in 0..coupled.len() {
+        for b in a + 1..coupled.len() {
+            let (i, j) = (coupled[a], coupled[b]);
+            let c = block(&cols[i], &cols[j]) / (involvement[i] * involvement[j]).sqrt();
+            if c > 0.1 {
+                let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
+                parent[ri] = rj;
+            }
+        }
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for &i in &coupled {
+        let r = find(&mut parent, i);
+        match groups.iter_mut().find(|g| find(&mut parent.clone(), g[0]) == r) {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    let not_observed: Vec<usize> = involved.iter().cloned().filter(|&i| unobserved[i]).collect();
+    report.not_observed = not_observed.iter().map(|&i| name(&units[i])).collect();
+    report.combinations = groups.iter().map(|g| g.iter().map(|&i| name(&units[i])).collect()).collect();
+
+    // Count identified error functions (of 21).
+    let mut deficient = not_observed.iter().filter(|&&i| !matches!(units[i], Unit::Other(_))).count();
+    for g in &groups {
+        let model_units = g.iter().filter(|&&i| !matches!(units[i], Unit::Other(_))).count();
+        let others = g.len() - model_units;
+        // A group of m model functions coupled among themselves loses (about) one function;
+        // a model function coupled only to an effect loses none of the model's count.
+        if model_units >= 2 || (model_units == 1 && others == 0) {
+            deficient += 1;
+        }
+    }
+    report.identified_functions = 21usize.saturating_sub(deficient);
+
+    // Statements.
+    let last = layout.topology.last_axis();
+    let lateral = summary.probe_offsets.iter().any(|p| {
+        let mut q = *p;
+        q[last.index()] = 0.0;
+        q.norm() > 1e-6
+    });
+    let along: Vec<f64> = summary.probe_offsets.iter().map(|p| p[last.index()]).collect();
+    let distinct_along = {
+        let mut a = along.clone();
+        a.sort_by(|x, y| x.total_cmp(y));
+        a.dedup_by(|x, y| (*x - *y).abs() < 1e-6);
+        a.len()
+    };
+    let mut st = Vec::new();
+    if report.extra_null_dim == 0 {
+        st.push(format!(
+            "All 21 error functions are identified (rank {} of {} parameters after the {} gauge constraints; condition number {:.3e}).",
+            report.rank,
+            n_u + report.n_other,
+            GAUGE_DIM,
+            report.condition_number
+        ));
+    } else {
+        st.push(format!(
+            "{} of 21 error functions are identified individually; the data leave {} further direction(s) undetermined beyond the {} gauge freedoms, set to zero (minimum norm).",
+            report.identified_functions, report.extra_null_dim, GAUGE_DIM
+        ));
+    }
+    for &i in &not_observed {
+        let reason = match &units[i] {
+            Unit::F(f) if f.motion == Motion::Rotation && f.axis == last && f.component == last && !lateral => {
+                format!("the roll of the last axis ({}) acts only on a probe offset perpendicular to it, and all probe offsets are along {}", last.letter(), last.letter())
+            }
+            Unit::F(f) if f.motion == Motion::Rotation && f.axis == last => {
+                format!("rotations of the last axis ({}) act only through the probe offset, and the probe offsets are zero or parallel to this rotation", last.letter())
+            }
+            Unit::F(f) if f.motion == Motion::Rotation => format!("its lever arm (the axes {} carries plus the probe offset) is parallel to its rotation axis everywhere the data go", f.axis.letter()),
+            Unit::F(f) => format!("no beam or path has a component along {} while {} moves", f.component.letter(), f.axis.letter()),
+            Unit::S(_) => "no data constrain this orientation".into(),
+            Unit::Other(_) => "no reading depends on it".into(),
+        };
+        st.push(format!("{} ({}) cannot be identified from these data: {}.", name(&units[i]), desc(&units[i]), reason));
+    }
+    for g in &groups {
+        let names: Vec<String> = g.iter().map(|&i| name(&units[i])).collect();
+        let last_rot =
+            g.iter().any(|&i| matches!(&units[i], Unit::F(f) if f.motion == Motion::Rotation && f.axis == last));
+        let hint = if last_rot && distinct_along < 2 {
+            format!(
+                "; rotations of {} act through the probe offset exactly like straightness of {}: measure with probe offsets of at least two different lengths along {}",
+                last.letter(),
+                last.letter(),
+                last.letter()
+            )
+        } else if g.iter().any(|&i| matches!(units[i], Unit::Other(_))) {
+            "; the effect's signature is indistinguishable from these error functions in this campaign".into()
+        } else {
+            "; more beam directions or probe offsets are needed to separate them".into()
+        };
+        st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
+    }
+    if report.constraint_conditioning < 1e-8 {
+        st.push(
+            "The gauge constraints do not fix all 24 gauge freedoms: the result is arbitrary along some of them."
+                .into(),
+        );
+    }
+    report.statements = st;
+}
