@@ -19,6 +19,7 @@ pub enum Representation {
     /// Piecewise-linear table at `nodes` equally spaced values (the patent's table form).
     Table { nodes: usize },
     /// Legendre polynomial series `P_0 .. P_degree` on the normalised travel.
+    #[cfg_attr(feature = "serde", serde(alias = "legendre"))]
     Polynomial { degree: usize },
     /// Constant + linear trend + `harmonics` sine/cosine pairs of fundamental period
     /// `period_m` (default: the travel length), e.g. for the pitch error of a ball screw.
@@ -29,6 +30,7 @@ pub enum Representation {
     },
     /// Clamped cubic B-spline with `intervals` equal knot intervals (`intervals + 3`
     /// coefficients).
+    #[cfg_attr(feature = "serde", serde(rename = "bspline"))]
     BSpline { intervals: usize },
 }
 

@@ -1,0 +1,227 @@
+//! The machine file (YAML): what the machine is, how its errors are represented, how they are
+//! gauged, how noisy the instruments are, and (for `volcal simulate`) how the virtual machine
+//! behaves.
+//!
+//! ```yaml
+//! topology: FXYZ                      # axis stacking, workpiece to tool
+//! travel: {x: [0, 1.0], y: [0, 0.8], z: [-0.6, 0]}   # metres
+//! # optional, with these defaults:
+//! representation: {kind: bspline, intervals: 12}
+//! representations: {EXX: {kind: polynomial, degree: 6}}   # per-function overrides
+//! gauge: patent                       # or datum
+//! noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_m: 1.0e-7, tracer_ppm: 0.2}
+//! expansion: {x: 11.5e-6, y: 11.5e-6, z: 11.5e-6}          # ISO 1 normalisation (1/K)
+//! simulation: {...}                   # virtual machine for `volcal simulate`
+//! ```
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+use volcal::campaign::ScaleExpansion;
+use volcal::{ErrorFunction, Gauge, ModelLayout, NoiseModel, Representation, SolveOptions, Topology, Travel};
+use volcal_sim::{Deflector, EnvironmentSim, Interferometer, Tracer, TruthSpec};
+
+/// Per-axis travel as written in YAML.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TravelSpec {
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+    pub z: [f64; 2],
+}
+
+/// ISO 1 expansion coefficients per axis (1/K) and scale fixed points (m).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ExpansionSpec {
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub z: Option<f64>,
+    #[serde(default)]
+    pub fixed_point_m: Option<[f64; 3]>,
+}
+
+/// The virtual machine for `volcal simulate`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimulationSpec {
+    /// Random truth drawn from these amplitudes (seeded by `--seed`).
+    pub truth: TruthSpec,
+    /// Representation of the truth functions (default: the solver's, i.e. truth inside it).
+    pub truth_representation: Option<Representation>,
+    /// Machine repeatability per axis, metres.
+    pub repeatability_m: f64,
+    /// Photoreceiver centring error, metres.
+    pub centring_m: f64,
+    pub interferometer: Interferometer,
+    pub deflector: Deflector,
+    pub tracer: Tracer,
+    pub environment: EnvironmentSim,
+}
+
+impl Default for SimulationSpec {
+    fn default() -> Self {
+        SimulationSpec {
+            truth: TruthSpec::default(),
+            truth_representation: None,
+            repeatability_m: 0.2e-6,
+            centring_m: 1e-6,
+            interferometer: Interferometer::default(),
+            deflector: Deflector::default(),
+            tracer: Tracer::default(),
+            environment: EnvironmentSim::default(),
+        }
+    }
+}
+
+/// A machine file.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MachineFile {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub topology: String,
+    pub travel: TravelSpec,
+    #[serde(default)]
+    pub representation: Option<Representation>,
+    #[serde(default)]
+    pub representations: BTreeMap<String, Representation>,
+    #[serde(default)]
+    pub gauge: Option<String>,
+    #[serde(default)]
+    pub noise: Option<NoiseModel>,
+    #[serde(default)]
+    pub expansion: Option<ExpansionSpec>,
+    #[serde(default)]
+    pub simulation: SimulationSpec,
+}
+
+/// A validated machine description.
+#[derive(Clone, Debug)]
+pub struct Machine {
+    pub file: MachineFile,
+    pub layout: ModelLayout,
+    pub gauge: Gauge,
+    pub noise: NoiseModel,
+    pub expansion: ScaleExpansion,
+}
+
+/// The built-in demo machine: a 1.0 x 0.8 x 0.6 m moving-bridge CMM (FXYZ as in the patent).
+pub const DEMO_MACHINE: &str = include_str!("../../launch_configs/machines/demo_cmm.yaml");
+
+impl Machine {
+    /// Reads and validates a machine file.
+    pub fn load(path: &Path) -> Result<Machine> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("cannot read machine file {}", path.display()))?;
+        Machine::parse(&text).with_context(|| format!("machine file {}", path.display()))
+    }
+
+    /// Parses and validates machine YAML.
+    pub fn parse(text: &str) -> Result<Machine> {
+        let file: MachineFile = serde_yaml::from_str(text).map_err(|e| {
+            let at = e.location().map(|l| format!("line {}, column {}: ", l.line(), l.column())).unwrap_or_default();
+            anyhow::anyhow!("{at}{e}")
+        })?;
+        Machine::from_file(file)
+    }
+
+    pub fn from_file(file: MachineFile) -> Result<Machine> {
+        let topology = Topology::parse(&file.topology).map_err(|e| anyhow::anyhow!("field topology: {e}"))?;
+        let t = &file.travel;
+        let travel = Travel::new(t.x, t.y, t.z);
+        travel.validate().map_err(|e| anyhow::anyhow!("field travel: {e}"))?;
+        for (a, r) in [('x', t.x), ('y', t.y), ('z', t.z)] {
+            if r[1] - r[0] > 50.0 {
+                bail!(
+                    "field travel.{a}: [{}, {}] spans more than 50 m; the machine file is in metres (millimetres?)",
+                    r[0],
+                    r[1]
+                );
+            }
+        }
+        let base = file.representation.unwrap_or_default();
+        base.validate().map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
+        let mut reprs = [base; 18];
+        for (name, r) in &file.representations {
+            let f = ErrorFunction::parse(name).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "field representations: unknown error function {name:?} (expected ISO names such as EXX, EYZ, ECY)"
+                )
+            })?;
+            r.validate().map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
+            reprs[f.index()] = *r;
+        }
+        let gauge = match &file.gauge {
+            None => Gauge::Patent,
+            Some(g) => Gauge::parse(g)
+                .ok_or_else(|| anyhow::anyhow!("field gauge: unknown gauge {g:?} (expected patent or datum)"))?,
+        };
+        let noise = file.noise.unwrap_or_default();
+        for (name, v) in [
+            ("interferometer_m", noise.interferometer_m),
+            ("repeatability_m", noise.repeatability_m),
+            ("tracer_m", noise.tracer_m),
+            ("tracer_ppm", noise.tracer_ppm),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                bail!("field noise.{name}: must be a non-negative number, got {v}");
+            }
+        }
+        if noise.interferometer_m == 0.0 && noise.repeatability_m == 0.0 {
+            bail!("field noise: interferometer_m and repeatability_m cannot both be zero (they weight the readings)");
+        }
+        let expansion = match &file.expansion {
+            None => ScaleExpansion::default(),
+            Some(e) => {
+                ScaleExpansion { alpha_per_k: [e.x, e.y, e.z], fixed_point_m: e.fixed_point_m.unwrap_or([0.0; 3]) }
+            }
+        };
+        let layout = ModelLayout::new(topology, travel, reprs);
+        Ok(Machine { file, layout, gauge, noise, expansion })
+    }
+
+    /// Solver options implied by the machine file.
+    pub fn solve_options(&self) -> SolveOptions {
+        SolveOptions { gauge: self.gauge, noise: self.noise, ..SolveOptions::default() }
+    }
+
+    /// Layout used for the simulated truth.
+    pub fn truth_layout(&self) -> ModelLayout {
+        match self.file.simulation.truth_representation {
+            Some(r) => ModelLayout::uniform(self.layout.topology.clone(), self.layout.travel, r),
+            None => self.layout.clone(),
+        }
+    }
+
+    /// Display name.
+    pub fn name(&self) -> String {
+        self.file.name.clone().unwrap_or_else(|| format!("{} machine", self.layout.topology))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn demo_machine_parses() {
+        let m = Machine::parse(DEMO_MACHINE).unwrap();
+        assert_eq!(m.layout.topology.to_string(), "FXYZ");
+    }
+
+    #[test]
+    fn minimal_file_and_errors() {
+        let m = Machine::parse("topology: FYXZ\ntravel: {x: [0, 0.7], y: [-0.5, 0], z: [-0.7, 0]}\n").unwrap();
+        assert_eq!(m.gauge, Gauge::Patent);
+        let e = Machine::parse("topology: FXQZ\ntravel: {x: [0, 1], y: [0, 1], z: [0, 1]}\n").unwrap_err();
+        assert!(format!("{e:#}").contains("topology"), "{e:#}");
+        let e = Machine::parse("topology: FXYZ\ntravel: {x: [0, 1000], y: [0, 800], z: [0, 600]}\n").unwrap_err();
+        assert!(format!("{e:#}").contains("millimetres"), "{e:#}");
+        let e = Machine::parse("topology: FXYZ\ntravel: {x: [0, 1], y: [0, 1], z: [0, 1]}\nrepresentations: {EQX: {kind: table, nodes: 3}}\n").unwrap_err();
+        assert!(format!("{e:#}").contains("EQX"), "{e:#}");
+        let e = Machine::parse("topology: FXYZ\ntravel: {x: [0, 1], y: [0, 1]\n").unwrap_err();
+        assert!(format!("{e:#}").contains("line"), "{e:#}");
+    }
+}
