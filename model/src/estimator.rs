@@ -311,6 +311,234 @@ pub fn solve(
     opts: &SolveOptions,
     effects: &[&dyn Effect],
 ) -> Result<Solution, SolveError> {
+    fit(layout, obs, opts, effects).map(Fit::into_solution)
+}
+
+/// A solved problem that keeps what is needed to test extensions of its model: the factorised,
+/// constrained normal equations at the solution.
+pub struct Fit<'a> {
+    prob: Problem<'a>,
+    state: State,
+    z: NullSpace,
+    factor: Reduced,
+    scale: Vec<f64>,
+    solution: Solution,
+    rows: std::cell::OnceCell<ModelRows>,
+}
+
+/// Score (nested-model) test of an [`Effect`] against a [`Fit`]: what adding its parameters to
+/// the model would change, computed exactly for the linearised problem through the Schur
+/// complement of the fitted normal equations (no refit).
+#[derive(Clone, Debug)]
+pub struct Score {
+    /// Reduction of the weighted chi-square.
+    pub delta_chi2: f64,
+    /// Number of new parameters the data can separate from the model (the rest alias with it).
+    pub rank: usize,
+    /// One-step estimates of the effect's parameters.
+    pub estimate: Vec<f64>,
+    /// Their covariance (a priori weights, scaled like the solution's covariance).
+    pub covariance: Mat<f64>,
+    /// The information the data carry about them beyond the model (the Schur complement) and
+    /// the gradient, for out-of-sample checks: the chi-square reduction of parameters `t` is
+    /// `2 t . gradient - t . information . t`.
+    pub information: Mat<f64>,
+    pub gradient: Vec<f64>,
+}
+
+impl Score {
+    /// Chi-square reduction these data would see from parameters `t` (e.g. fitted elsewhere).
+    pub fn gain(&self, t: &[f64]) -> f64 {
+        let k = t.len();
+        let mut quad = 0.0;
+        for i in 0..k {
+            for j in 0..k {
+                quad += t[i] * self.information[(i, j)] * t[j];
+            }
+        }
+        2.0 * t.iter().zip(&self.gradient).map(|(a, b)| a * b).sum::<f64>() - quad
+    }
+}
+
+impl<'a> Fit<'a> {
+    pub fn solution(&self) -> &Solution {
+        &self.solution
+    }
+
+    pub fn into_solution(self) -> Solution {
+        self.solution
+    }
+
+    /// Fitted direction of each group (beams; zero for ranges).
+    pub fn directions(&self) -> &[Vector3<f64>] {
+        &self.state.dirs
+    }
+
+    /// Actual reflector position of every reading at the solution.
+    pub fn actual(&self) -> &[Point3<f64>] {
+        &self.state.actual
+    }
+
+    /// Tests `effect` as an extension of the fitted model.
+    pub fn score(&self, effect: &dyn Effect) -> Score {
+        self.score_masked(effect, None)
+    }
+
+    /// [`Fit::score`] restricted to the groups where `mask[group]` is true (cross-validation).
+    pub fn score_masked(&self, effect: &dyn Effect, mask: Option<&[bool]>) -> Score {
+        let p = &self.prob;
+        let s = &self.state;
+        let rows = self.rows.get_or_init(|| ModelRows::new(p, s));
+        let n = p.dims.n();
+        let k = effect.param_names().len();
+        let mut b = Mat::<f64>::zeros(n, k);
+        let mut g2 = Mat::<f64>::zeros(k, k);
+        let mut c = vec![0.0; k];
+        let mut reg = vec![0.0; k];
+        let mut nz: Vec<usize> = Vec::new();
+        let mut sa = vec![0.0; n];
+        let mut touched: Vec<usize> = Vec::new();
+        let mut is_touched = vec![false; n];
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            if mask.is_some_and(|m| !m[gi]) {
+                continue;
+            }
+            let mut wsum = 0.0;
+            let mut sg = vec![0.0; k];
+            for i in g.range() {
+                let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+                wsum += w;
+                let (ri, rv) = rows.row(i);
+                for (&col, &v) in ri.iter().zip(rv) {
+                    if !is_touched[col] {
+                        is_touched[col] = true;
+                        touched.push(col);
+                    }
+                    sa[col] += w * v;
+                }
+                let ctx = ObsContext { obs: p.obs, i, group: g, direction: rows.dirs[i], actual: s.actual[i] };
+                reg.iter_mut().for_each(|v| *v = 0.0);
+                effect.regressors(&ctx, &mut reg);
+                nz.clear();
+                nz.extend((0..k).filter(|&j| reg[j] != 0.0));
+                if nz.is_empty() {
+                    continue;
+                }
+                let r = self.solution.residuals[i];
+                for &j in &nz {
+                    sg[j] += w * reg[j];
+                    c[j] += w * reg[j] * r;
+                    for &l in &nz {
+                        g2[(j, l)] += w * reg[j] * reg[l];
+                    }
+                }
+                for (&col, &v) in ri.iter().zip(rv) {
+                    for &j in &nz {
+                        b[(col, j)] += w * v * reg[j];
+                    }
+                }
+            }
+            // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
+            let sgn: Vec<usize> = (0..k).filter(|&j| sg[j] != 0.0).collect();
+            for &col in &touched {
+                for &j in &sgn {
+                    b[(col, j)] -= sa[col] * sg[j] / wsum;
+                }
+                sa[col] = 0.0;
+                is_touched[col] = false;
+            }
+            touched.clear();
+            for &j in &sgn {
+                for &l in &sgn {
+                    g2[(j, l)] -= sg[j] * sg[l] / wsum;
+                }
+            }
+        }
+        self.schur_score(&b, &g2, &c)
+    }
+
+    /// Solves the Schur complement of the fitted model for an extension with cross products
+    /// `b` (model x extension), `g2` (extension x extension) and gradient `c`.
+    fn schur_score(&self, b: &Mat<f64>, g2: &Mat<f64>, c: &[f64]) -> Score {
+        let n = b.nrows();
+        let k = b.ncols();
+        // Schur complement against the model: S = G - B^T N+ B, with N+ the constrained inverse.
+        let bs = Mat::from_fn(n, k, |i, j| b[(i, j)] / self.scale[i]);
+        let y = self.z.zt(&bs);
+        let mut x = y.clone();
+        self.factor.llt.solve_in_place(x.as_mut());
+        let q = y.transpose() * &x;
+        let schur = Mat::from_fn(k, k, |i, j| 0.5 * ((g2[(i, j)] - q[(i, j)]) + (g2[(j, i)] - q[(j, i)])));
+        // Columns that alias completely with the model (their Schur diagonal vanishes relative to
+        // their own energy) carry no new information; the rest by a pseudo-inverse.
+        let alive: Vec<bool> = (0..k).map(|i| schur[(i, i)] > 1e-10 * g2[(i, i)].max(f64::MIN_POSITIVE)).collect();
+        let d: Vec<f64> = (0..k).map(|i| if alive[i] { schur[(i, i)].sqrt() } else { 1.0 }).collect();
+        let sn = Mat::from_fn(k, k, |i, j| if alive[i] && alive[j] { schur[(i, j)] / (d[i] * d[j]) } else { 0.0 });
+        let (mut pinv, mut rank) = (Mat::<f64>::zeros(k, k), 0);
+        if k > 0 {
+            if let Ok(eig) = sn.self_adjoint_eigen(Side::Lower) {
+                let lam: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
+                let lmax = lam.iter().cloned().fold(0.0, f64::max);
+                let u = eig.U();
+                for (m, &l) in lam.iter().enumerate() {
+                    if l > 1e-9 * lmax.max(f64::MIN_POSITIVE) {
+                        rank += 1;
+                        for i in 0..k {
+                            for j in 0..k {
+                                pinv[(i, j)] += u[(i, m)] * u[(j, m)] / l;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let pinv = Mat::from_fn(k, k, |i, j| pinv[(i, j)] / (d[i] * d[j]));
+        let estimate: Vec<f64> = (0..k).map(|i| (0..k).map(|j| pinv[(i, j)] * c[j]).sum()).collect();
+        let delta_chi2 = estimate.iter().zip(c).map(|(e, c)| e * c).sum::<f64>().max(0.0);
+        let factor = self.solution.stats.variance_factor.max(1.0);
+        let covariance = Mat::from_fn(k, k, |i, j| pinv[(i, j)] * factor);
+        Score { delta_chi2, rank, estimate, covariance, information: schur, gradient: c.to_vec() }
+    }
+}
+
+/// The model rows of every reading at a fit's solution, kept for repeated extension tests.
+struct ModelRows {
+    start: Vec<usize>,
+    idx: Vec<usize>,
+    val: Vec<f64>,
+    dirs: Vec<Vector3<f64>>,
+}
+
+impl ModelRows {
+    fn new(p: &Problem<'_>, s: &State) -> ModelRows {
+        let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
+        let mut out =
+            ModelRows { start: vec![0], idx: Vec::new(), val: Vec::new(), dirs: vec![Vector3::zeros(); p.obs.len()] };
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            for i in g.range() {
+                let (_, dir) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
+                out.dirs[i] = dir;
+                out.idx.extend_from_slice(&idx);
+                out.val.extend_from_slice(&val);
+                out.start.push(out.idx.len());
+            }
+        }
+        // Readings are stored in group order, which is reading order within Observations.
+        out
+    }
+
+    fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        (&self.idx[self.start[i]..self.start[i + 1]], &self.val[self.start[i]..self.start[i + 1]])
+    }
+}
+
+/// Solves and keeps the [`Fit`] for extension tests (see [`Fit::score`]).
+pub fn fit<'a>(
+    layout: &'a ModelLayout,
+    obs: &'a Observations,
+    opts: &SolveOptions,
+    effects: &'a [&'a dyn Effect],
+) -> Result<Fit<'a>, SolveError> {
     if obs.is_empty() || obs.groups.is_empty() {
         return Err(SolveError::NoObservations);
     }
@@ -504,11 +732,11 @@ pub fn solve(
     let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
     let chi2 = normal.cost;
     let vf = chi2 / dof as f64;
-    let factor = match opts.covariance_scaling {
+    let cov_factor = match opts.covariance_scaling {
         CovarianceScaling::APriori => 1.0,
         CovarianceScaling::Birge => vf.max(1.0),
     };
-    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * factor);
+    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * cov_factor);
 
     let n_u = layout.n_params;
     let covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
@@ -560,7 +788,7 @@ pub fn solve(
         .collect();
     let rms = (final_res.residual.iter().map(|v| v * v).sum::<f64>() / n_obs as f64).sqrt();
     let model = ErrorModel { layout: layout.clone(), u: state.d[..n_u].to_vec() };
-    Ok(Solution {
+    let solution = Solution {
         model,
         covariance,
         stations: stations_out,
@@ -574,7 +802,8 @@ pub fn solve(
         converged,
         gauge: opts.gauge,
         warnings,
-    })
+    };
+    Ok(Fit { prob, state, z, factor, scale, solution, rows: std::cell::OnceCell::new() })
 }
 
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {

@@ -23,6 +23,7 @@
 pub mod axis;
 pub mod beam;
 pub mod campaign;
+pub mod diagnose;
 pub mod environment;
 pub mod estimator;
 pub mod functions;
