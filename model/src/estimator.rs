@@ -376,7 +376,25 @@ pub fn solve(
     let scale = column_scale(&first.n);
     let mut z = NullSpace::new(&cons, &scale);
     let m0 = reduced_matrix(&first, &z, &scale);
-    let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &z, &scale, opts.rank_tolerance);
+    let geometry = (!stations.is_empty()).then(|| tracer_geometry(&prob, &state));
+    let mut summary = prob_summary(&prob);
+    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
+    let mut ident = identify::analyse(layout, &summary, &first.n, &m0, &z, &scale, opts.rank_tolerance);
+    if let Some(geometry) = geometry {
+        let said = geometry.statements();
+        if !said.is_empty() {
+            ident.report.warnings.push(format!(
+                "tracer station geometry: {} station(s){} (see the identifiability report)",
+                geometry.n_stations,
+                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
+                    ", coplanar"
+                } else {
+                    ""
+                }
+            ));
+        }
+        ident.report.statements.extend(said);
+    }
     let mut first_reduced = None;
     if ident.extra_constraints.nrows() > 0 {
         cons = stack_rows(&cons, &ident.extra_constraints);
@@ -561,7 +579,22 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
         n_effect_params: p.dims.n_e,
         effect_col: p.dims.effect_col(),
         station_col: p.dims.n_u,
+        axis_positions: identify::DataSummary::positions_of(&p.obs.x),
+        readings_in_station_plane: 0,
     }
+}
+
+/// Geometry of the tracer stations at the current iterate and of the points they measured.
+fn tracer_geometry(p: &Problem<'_>, s: &State) -> crate::station_geometry::StationGeometry {
+    let stations: Vec<Point3<f64>> = (0..p.dims.stations.len())
+        .map(|k| {
+            let c = p.dims.station_col(k);
+            Point3::new(s.d[c], s.d[c + 1], s.d[c + 2])
+        })
+        .collect();
+    let points: Vec<Point3<f64>> =
+        p.obs.groups_of(ObsKind::Range).flat_map(|(_, g)| g.range()).map(|i| p.obs.x[i] + p.obs.p[i]).collect();
+    crate::station_geometry::assess(&stations, &points)
 }
 
 /// Actual reflector position of reading `i` at the current iterate.
@@ -837,8 +870,15 @@ fn residuals(p: &Problem<'_>, s: &State) -> Residuals {
 }
 
 /// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
+///
+/// A column counts as unobserved below the same relative threshold as in the identifiability
+/// analysis: a table basis evaluated at a node leaves round-off (~1e-16) on the neighbouring
+/// coefficient, and scaling such a column up to unit norm would turn that round-off into a
+/// direction the solver believes it observes.
 fn column_scale(n: &Mat<f64>) -> Vec<f64> {
-    (0..n.nrows()).map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt() } else { 1.0 }).collect()
+    let dmax = (0..n.nrows()).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
+    let floor = 1e-300_f64.max(dmax * identify::UNOBSERVED_RELATIVE_DIAGONAL);
+    (0..n.nrows()).map(|k| if n[(k, k)] > floor { n[(k, k)].sqrt() } else { 1.0 }).collect()
 }
 
 /// Embeds a constraint block on `u` into the full parameter space.

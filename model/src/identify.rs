@@ -29,6 +29,58 @@ pub struct DataSummary {
     pub n_effect_params: usize,
     pub effect_col: usize,
     pub station_col: usize,
+    /// Distinct positions of each axis (X, Y, Z) where the data have readings, sorted, metres.
+    pub axis_positions: [Vec<f64>; 3],
+    /// Tracer readings that lie in the common plane of coplanar stations (see
+    /// [`crate::station_geometry`]); 0 when the stations are not coplanar.
+    pub readings_in_station_plane: usize,
+}
+
+impl DataSummary {
+    /// Distinct, sorted axis positions of a set of indicated points (to 0.1 um).
+    pub fn positions_of(points: &[nalgebra::Point3<f64>]) -> [Vec<f64>; 3] {
+        std::array::from_fn(|a| {
+            let mut v: Vec<f64> = points.iter().map(|p| p[a]).collect();
+            v.sort_by(|x, y| x.total_cmp(y));
+            v.dedup_by(|x, y| (*x - *y).abs() < 1e-7);
+            v
+        })
+    }
+}
+
+/// Whether the readings leave part of a function's basis without data: a local basis
+/// function (table node, B-spline) whose support holds no reading, or a global basis with fewer
+/// distinct positions than coefficients. `None` when positions are not known.
+fn coverage_gap(layout: &ModelLayout, f: ErrorFunction, positions: &[f64]) -> Option<bool> {
+    if positions.is_empty() {
+        return None;
+    }
+    let b = layout.basis(f);
+    let n = b.n_coeffs();
+    match b.repr {
+        crate::repr::Representation::Table { .. } | crate::repr::Representation::BSpline { .. } => {
+            let mut seen = vec![false; n];
+            for &q in positions {
+                b.visit(q, false, |i, v| seen[i] |= v.abs() > 1e-9);
+            }
+            Some(seen.iter().any(|s| !s))
+        }
+        _ => Some(positions.len() < n),
+    }
+}
+
+/// Positions as a short text in millimetres: all of them when few, else the span and count.
+fn positions_text(positions: &[f64]) -> String {
+    if positions.len() <= 6 {
+        positions.iter().map(|q| format!("{:.0}", q * 1e3)).collect::<Vec<_>>().join(", ") + " mm"
+    } else {
+        format!(
+            "{} positions from {:.0} to {:.0} mm",
+            positions.len(),
+            positions[0] * 1e3,
+            positions[positions.len() - 1] * 1e3
+        )
+    }
 }
 
 /// The identifiability report of a solve.
@@ -68,6 +120,10 @@ pub(crate) struct Analysis {
     /// Rows to append to the constraints (empty when everything is identifiable).
     pub extra_constraints: Mat<f64>,
 }
+
+/// A parameter whose normal-matrix diagonal is below this fraction of the largest diagonal is
+/// not observed (its column norm is round-off, 1e-14 of the best-observed column).
+pub(crate) const UNOBSERVED_RELATIVE_DIAGONAL: f64 = 1e-28;
 
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
 /// reported as observed by the data.
@@ -256,8 +312,10 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
     };
     // Not observed: every column of the unit is zero.
     let dmax = (0..dim).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
-    let unobserved: Vec<bool> =
-        cols.iter().map(|c| c.iter().all(|&k| n[(k, k)].abs() <= 1e-300_f64.max(dmax * 1e-28))).collect();
+    let unobserved: Vec<bool> = cols
+        .iter()
+        .map(|c| c.iter().all(|&k| n[(k, k)].abs() <= 1e-300_f64.max(dmax * UNOBSERVED_RELATIVE_DIAGONAL)))
+        .collect();
     // Involvement of each unit in the null space: trace of its diagonal block of W W^T.
     let k = w.ncols();
     let block = |a: &[usize], b: &[usize]| -> f64 {
@@ -359,13 +417,39 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
                 format!("rotations of the last axis ({}) act only through the probe offset, and the probe offsets are zero or parallel to this rotation", last.letter())
             }
             Unit::F(f) if f.motion == Motion::Rotation => format!("its lever arm (the axes {} carries plus the probe offset) is parallel to its rotation axis everywhere the data go", f.axis.letter()),
+            Unit::F(f) if summary.axis_positions[f.axis.index()].len() == 1 => {
+                format!("axis {} does not move in these data", f.axis.letter())
+            }
             Unit::F(f) => format!("no beam or path has a component along {} while {} moves", f.component.letter(), f.axis.letter()),
             Unit::S(_) => "no data constrain this orientation".into(),
             Unit::Other(_) => "no reading depends on it".into(),
         };
         st.push(format!("{} ({}) cannot be identified from these data: {}.", name(&units[i]), desc(&units[i]), reason));
     }
-    for g in &groups {
+    // Functions that are undetermined only because the data do not visit all of their axis's
+    // travel: one statement per axis instead of one "combination" per function.
+    let is_station = |u: &Unit| matches!(u, Unit::Other(s) if s.starts_with("station"));
+    let partial = |g: &Vec<usize>| -> Option<crate::axis::Axis> {
+        match (g.len(), &units[g[0]]) {
+            (1, Unit::F(f)) if coverage_gap(layout, *f, &summary.axis_positions[f.axis.index()]) == Some(true) => {
+                Some(f.axis)
+            }
+            _ => None,
+        }
+    };
+    for a in crate::axis::Axis::ALL {
+        let fs: Vec<String> = groups.iter().filter(|g| partial(g) == Some(a)).map(|g| name(&units[g[0]])).collect();
+        if !fs.is_empty() {
+            st.push(format!(
+                "{} are observed only where the data visit axis {} ({}): their values between those positions are not determined and are set by the minimum-norm choice, so predictions there are not calibrated; move {} across its whole travel (e.g. the 12 edges of the working cuboid) to determine them.",
+                fs.join(", "),
+                a.letter(),
+                positions_text(&summary.axis_positions[a.index()]),
+                a.letter()
+            ));
+        }
+    }
+    for g in groups.iter().filter(|g| partial(g).is_none()) {
         let names: Vec<String> = g.iter().map(|&i| name(&units[i])).collect();
         let last_rot =
             g.iter().any(|&i| matches!(&units[i], Unit::F(f) if f.motion == Motion::Rotation && f.axis == last));
@@ -376,12 +460,26 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
                 last.letter(),
                 last.letter()
             )
+        } else if g.iter().any(|&i| is_station(&units[i])) {
+            format!(
+                "; the positions of the tracer stations cannot be separated from these functions with {} station(s) in this geometry: the tracer method needs at least 4 stations, not coplanar, seeing every point of the path",
+                summary.n_stations
+            )
         } else if g.iter().any(|&i| matches!(units[i], Unit::Other(_))) {
             "; the effect's signature is indistinguishable from these error functions in this campaign".into()
+        } else if summary.readings_in_station_plane > 0 {
+            format!(
+                "; {} tracer readings lie in the plane of the coplanar stations, where no range sees the error normal to that plane (see below)",
+                summary.readings_in_station_plane
+            )
         } else {
             "; more beam directions or probe offsets are needed to separate them".into()
         };
-        st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
+        if names.len() == 1 {
+            st.push(format!("{} is only partly determined: a combination of its values is not{}.", names[0], hint));
+        } else {
+            st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
+        }
     }
     if report.constraint_conditioning < 1e-8 {
         st.push(

@@ -35,6 +35,7 @@ mod nullspace;
 pub mod predict;
 pub mod range;
 pub mod repr;
+pub mod station_geometry;
 pub mod topology;
 
 pub use axis::{Axis, Travel};

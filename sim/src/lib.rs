@@ -11,6 +11,7 @@
 
 pub mod inject;
 pub mod instruments;
+pub mod paper;
 pub mod plan;
 pub mod simulate;
 pub mod truth;
