@@ -439,6 +439,12 @@ pub fn solve(
             Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
         };
         if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+            if step.max_sigma_ratio < opts.tolerance {
+                // A negligible step that does not lower the cost: the minimum has been reached
+                // to round-off; raising the damping would only spend iterations.
+                converged = true;
+                break;
+            }
             mu = (mu * 10.0).max(1e-6);
             if mu > 1e12 {
                 warnings.push("Levenberg-Marquardt could not reduce the cost further".into());

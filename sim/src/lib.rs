@@ -11,6 +11,7 @@
 
 pub mod inject;
 pub mod instruments;
+pub mod line_measurement;
 pub mod paper;
 pub mod plan;
 pub mod simulate;
