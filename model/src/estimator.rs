@@ -371,98 +371,64 @@ pub fn solve(
 
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
     let n = prob.dims.n();
-    let mut cons = embed(&gauge::constraints(layout, opts.gauge), n);
+    let gauge_cons = embed(&gauge::constraints(layout, opts.gauge), n);
     let first = assemble(&prob, &state, true);
-    let scale = column_scale(&first.n);
-    let mut z = NullSpace::new(&cons, &scale);
-    let m0 = reduced_matrix(&first, &z, &scale);
-    let geometry = (!stations.is_empty()).then(|| tracer_geometry(&prob, &state));
-    let mut summary = prob_summary(&prob);
-    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
-    let mut ident = identify::analyse(layout, &summary, &first.n, &m0, &z, &scale, opts.rank_tolerance);
-    if let Some(geometry) = geometry {
-        let said = geometry.statements();
-        if !said.is_empty() {
-            ident.report.warnings.push(format!(
-                "tracer station geometry: {} station(s){} (see the identifiability report)",
-                geometry.n_stations,
-                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
-                    ", coplanar"
-                } else {
-                    ""
-                }
-            ));
-        }
-        ident.report.statements.extend(said);
-    }
+    let mut scale = column_scale(&first.n);
+    let (mut ident, _, m0) = analyse_normal(&prob, &state, &first.n, &gauge_cons, &scale, opts);
+    let mut z = NullSpace::new(&gauge_cons, &scale);
     let mut first_reduced = None;
     if ident.extra_constraints.nrows() > 0 {
-        cons = stack_rows(&cons, &ident.extra_constraints);
-        z = NullSpace::new(&cons, &scale);
+        z = NullSpace::new(&stack_rows(&gauge_cons, &ident.extra_constraints), &scale);
     } else {
-        first_reduced = Some(m0);
+        first_reduced = m0;
     }
-    warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
-    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
+    let d0 = state.d.clone();
     let mut normal = first;
-    let mut converged = false;
-    let mut iterations = 0;
-    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
-    // so for beam-only problems the normal matrix of the first linearisation is kept and only
-    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
-    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    let mut frozen: Option<Reduced> = None;
-    for it in 0..opts.max_iterations {
-        iterations = it + 1;
-        let step = if nonlinear {
-            reduced_step(&Reduced::new(&normal, &z, &scale, mu)?, &normal, &z, &scale)
+    let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, first_reduced, opts, nonlinear)?;
+    // Ranges are nonlinear: what the data determine depends on where the stations are, which
+    // is only known at the solution (e.g. coplanar stations are only recognised once located).
+    // Analyse again with the stations as estimated and the machine errors at zero: that is
+    // what the geometry determines to first order. (At the estimated errors a direction
+    // unobservable to first order can look weakly observed through second-order terms, with a
+    // sign ambiguity: a ranged point in the stations' plane moved by +e or -e normal to it reads
+    // the same.) If this finds further undetermined directions, remove them from the change
+    // since the start (they do not affect the fit to first order) and iterate again under the
+    // new constraints.
+    if nonlinear {
+        let mut nominal = state.clone();
+        nominal.d[..layout.n_params].fill(0.0);
+        update_directions(&prob, &mut nominal);
+        let normal_nom = assemble(&prob, &nominal, true);
+        let (ident_f, scale_w, _) =
+            analyse_normal(&prob, &nominal, &normal_nom.n, &gauge_cons, &column_scale(&normal_nom.n), opts);
+        if ident_f.report.extra_null_dim > ident.report.extra_null_dim {
+            let w = &ident_f.extra_constraints;
+            for r in 0..w.nrows() {
+                // Rows are W^T S (unscaled); W has orthonormal columns in scaled coordinates.
+                let along: f64 = (0..n).map(|k| w[(r, k)] * (state.d[k] - d0[k])).sum();
+                for k in 0..n {
+                    state.d[k] -= along * w[(r, k)] / (scale_w[k] * scale_w[k]);
+                }
+            }
+            update_directions(&prob, &mut state);
+            normal = assemble(&prob, &state, true);
+            scale = column_scale(&normal.n);
+            z = NullSpace::new(&stack_rows(&gauge_cons, w), &scale);
+            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, None, opts, nonlinear)?;
+            lm.iterations += again.iterations;
+            lm.converged = again.converged;
+            lm.warnings.extend(again.warnings);
+            ident = ident_f;
         } else {
-            if frozen.is_none() {
-                frozen = Some(match first_reduced.take() {
-                    Some(m) => Reduced::from_matrix(m, 0.0)?,
-                    None => Reduced::new(&normal, &z, &scale, 0.0)?,
-                });
-            }
-            reduced_step(frozen.as_ref().unwrap(), &normal, &z, &scale)
-        };
-        let mut trial = state.clone();
-        for k in 0..n {
-            trial.d[k] += step.delta[k];
-        }
-        update_directions(&prob, &mut trial);
-        let trial_normal = if nonlinear {
-            assemble(&prob, &trial, true)
-        } else {
-            let g = assemble(&prob, &trial, false);
-            Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
-        };
-        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
-            if step.max_sigma_ratio < opts.tolerance {
-                // A negligible step that does not lower the cost: the minimum has been reached
-                // to round-off; raising the damping would only spend iterations.
-                converged = true;
-                break;
-            }
-            mu = (mu * 10.0).max(1e-6);
-            if mu > 1e12 {
-                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
-                break;
-            }
-            continue;
-        }
-        mu *= 0.1;
-        if std::env::var_os("VOLCAL_TRACE").is_some() {
-            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
-        }
-        state = trial;
-        normal = trial_normal;
-        if step.max_sigma_ratio < opts.tolerance {
-            converged = true;
-            break;
+            // Same null space: report the analysis at the solution (geometry as estimated).
+            ident.report = ident_f.report;
         }
     }
+    warnings.extend(ident.report.warnings.iter().cloned());
+    warnings.extend(lm.warnings);
+    let (iterations, converged) = (lm.iterations, lm.converged);
     if !converged {
         warnings.push(format!("the estimator did not converge in {} iterations", iterations));
     }
@@ -549,6 +515,165 @@ pub fn solve(
         gauge: opts.gauge,
         warnings,
     })
+}
+
+/// Identifiability analysis at a linearisation, with the tracer station geometry of that state.
+#[allow(clippy::too_many_arguments)]
+fn analyse_at(
+    prob: &Problem<'_>,
+    state: &State,
+    normal: &Mat<f64>,
+    m: &Mat<f64>,
+    z: &NullSpace,
+    scale: &[f64],
+    opts: &SolveOptions,
+) -> identify::Analysis {
+    let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
+    let mut summary = prob_summary(prob);
+    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
+    let mut ident = identify::analyse(prob.layout, &summary, normal, m, z, scale, opts.rank_tolerance);
+    if let Some(geometry) = geometry {
+        let said = geometry.statements();
+        if !said.is_empty() {
+            ident.report.warnings.push(format!(
+                "tracer station geometry: {} station(s){} (see the identifiability report)",
+                geometry.n_stations,
+                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
+                    ", coplanar"
+                } else {
+                    ""
+                }
+            ));
+        }
+        ident.report.statements.extend(said);
+    }
+    ident
+}
+
+/// Identifiability analysis of normal matrix `n` under the gauge constraints, with the columns
+/// that the data observe only negligibly (see [`weak_columns`]) masked out so that the analysis
+/// reports them as undetermined. Returns the analysis, the column scaling its constraint rows
+/// were built with and, when nothing was masked, the reduced matrix under the gauge
+/// constraints alone in `scale` (reused by the beam-only solve).
+fn analyse_normal(
+    prob: &Problem<'_>,
+    state: &State,
+    n: &Mat<f64>,
+    gauge_cons: &Mat<f64>,
+    scale: &[f64],
+    opts: &SolveOptions,
+) -> (identify::Analysis, Vec<f64>, Option<Mat<f64>>) {
+    let weak = weak_columns(n);
+    if weak.is_empty() {
+        let z = NullSpace::new(gauge_cons, scale);
+        let m = reduced_of(n, &z, scale);
+        let ident = analyse_at(prob, state, n, &m, &z, scale, opts);
+        return (ident, scale.to_vec(), Some(m));
+    }
+    let masked = Mat::from_fn(n.nrows(), n.ncols(), |i, j| if weak[i] || weak[j] { 0.0 } else { n[(i, j)] });
+    let sm = column_scale(&masked);
+    let z = NullSpace::new(gauge_cons, &sm);
+    let m = reduced_of(&masked, &z, &sm);
+    let ident = analyse_at(prob, state, &masked, &m, &z, &sm, opts);
+    (ident, sm, None)
+}
+
+/// Columns observed only negligibly: diagonal below [`identify::NEGLIGIBLE_RELATIVE_DIAGONAL`]
+/// of the largest, i.e. a standard uncertainty a million times that of the best-observed
+/// parameter. Jacobi scaling would otherwise blow such a column up to unit norm and the analysis
+/// would count it as determined (e.g. the error normal to the plane of coplanar tracer stations
+/// at the readings in that plane, seen only through the stations' tiny distance from it).
+fn weak_columns(n: &Mat<f64>) -> Vec<bool> {
+    let dmax = (0..n.nrows()).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
+    let floor = dmax * identify::NEGLIGIBLE_RELATIVE_DIAGONAL;
+    let weak: Vec<bool> = (0..n.nrows()).map(|k| n[(k, k)] > 0.0 && n[(k, k)] < floor).collect();
+    if weak.iter().any(|&w| w) {
+        weak
+    } else {
+        Vec::new()
+    }
+}
+
+/// Outcome of one run of [`levenberg_marquardt`].
+struct LmRun {
+    iterations: usize,
+    converged: bool,
+    warnings: Vec<String>,
+}
+
+/// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
+/// constraints, from `state` with its normal equations `normal`; both are updated in place.
+#[allow(clippy::too_many_arguments)]
+fn levenberg_marquardt(
+    prob: &Problem<'_>,
+    state: &mut State,
+    normal: &mut Normal,
+    z: &NullSpace,
+    scale: &[f64],
+    mut first_reduced: Option<Mat<f64>>,
+    opts: &SolveOptions,
+    nonlinear: bool,
+) -> Result<LmRun, SolveError> {
+    let n = prob.dims.n();
+    let mut warnings = Vec::new();
+    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
+    let mut converged = false;
+    let mut iterations = 0;
+    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
+    // so for beam-only problems the normal matrix of the first linearisation is kept and only
+    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
+    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
+    let mut frozen: Option<Reduced> = None;
+    for it in 0..opts.max_iterations {
+        iterations = it + 1;
+        let step = if nonlinear {
+            reduced_step(&Reduced::new(normal, z, scale, mu)?, normal, z, scale)
+        } else {
+            if frozen.is_none() {
+                frozen = Some(match first_reduced.take() {
+                    Some(m) => Reduced::from_matrix(m, 0.0)?,
+                    None => Reduced::new(normal, z, scale, 0.0)?,
+                });
+            }
+            reduced_step(frozen.as_ref().unwrap(), normal, z, scale)
+        };
+        let mut trial = state.clone();
+        for k in 0..n {
+            trial.d[k] += step.delta[k];
+        }
+        update_directions(prob, &mut trial);
+        let trial_normal = if nonlinear {
+            assemble(prob, &trial, true)
+        } else {
+            let g = assemble(prob, &trial, false);
+            Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
+        };
+        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+            if step.max_sigma_ratio < opts.tolerance {
+                // A negligible step that does not lower the cost: the minimum has been reached
+                // to round-off; raising the damping would only spend iterations.
+                converged = true;
+                break;
+            }
+            mu = (mu * 10.0).max(1e-6);
+            if mu > 1e12 {
+                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
+                break;
+            }
+            continue;
+        }
+        mu *= 0.1;
+        if std::env::var_os("VOLCAL_TRACE").is_some() {
+            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
+        }
+        *state = trial;
+        *normal = trial_normal;
+        if step.max_sigma_ratio < opts.tolerance {
+            converged = true;
+            break;
+        }
+    }
+    Ok(LmRun { iterations, converged, warnings })
 }
 
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {
@@ -904,8 +1029,13 @@ struct Step {
 
 /// Reduced matrix `Z^T N_s Z` in scaled coordinates.
 fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
+    reduced_of(&normal.n, z, scale)
+}
+
+/// Reduced matrix `Z^T N_s Z` of a normal matrix in scaled coordinates.
+fn reduced_of(n_mat: &Mat<f64>, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
     let n = scale.len();
-    let ns = Mat::from_fn(n, n, |i, j| normal.n[(i, j)] / (scale[i] * scale[j]));
+    let ns = Mat::from_fn(n, n, |i, j| n_mat[(i, j)] / (scale[i] * scale[j]));
     z.project(&ns)
 }
 

@@ -125,6 +125,11 @@ pub(crate) struct Analysis {
 /// not observed (its column norm is round-off, 1e-14 of the best-observed column).
 pub(crate) const UNOBSERVED_RELATIVE_DIAGONAL: f64 = 1e-28;
 
+/// A parameter whose diagonal is below this fraction of the largest is observed only
+/// negligibly (standard uncertainty 1e6 times that of the best-observed one, millimetres where
+/// the best is nanometres): it is reported and constrained as undetermined.
+pub(crate) const NEGLIGIBLE_RELATIVE_DIAGONAL: f64 = 1e-12;
+
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
 /// reported as observed by the data.
 const GAUGE_OBSERVED: f64 = 1e-6;
