@@ -313,3 +313,53 @@ fn bad_geometry_gives_identifiability_reports() {
     assert!(says(&sol, "EXY, EYY, EZY, EAY, EBY, ECY are observed only where the data visit axis Y (-500, 0 mm)"));
     assert_eq!(sol.identifiability.identified_functions, 11);
 }
+
+/// RMS over the grid of the predicted standard uncertainty of the volumetric error (zero probe
+/// offset), and of the actual gauge-aligned error.
+fn predicted_and_actual_rms(sol: &Solution, truth: &ErrorModel) -> (f64, f64) {
+    let (mut v2, mut d2) = (0.0, 0.0);
+    let g = grid();
+    for x in &g {
+        let p = Vector3::zeros();
+        v2 += predict::predict(&sol.model, &sol.covariance, x, &p).cov.trace();
+        d2 += (sol.model.error(x, &p) - truth.error(x, &p)).norm_squared();
+    }
+    ((v2 / g.len() as f64).sqrt(), (d2 / g.len() as f64).sqrt())
+}
+
+/// Acceptance 5: fixed-beam and tracer readings of the same machine in one estimation give a
+/// smaller predicted uncertainty than either alone (same gauge, same noise model, zero probe
+/// offset, over the grid), and each estimate agrees with the truth.
+#[test]
+fn joint_solve_beats_either_alone() {
+    let layout = paper::layout();
+    let truth = aligned_truth(&layout);
+    let tracer_plan = paper::plan();
+    let ranges = campaign(&config(tracer_plan.clone(), true), 11);
+    // The patent's example plan (3 positions x 25 beams x 100 points, 3 probe offsets).
+    let beams = campaign(&config(Plan::patent_example(), true), 12);
+    assert_eq!(beams.meta, ranges.meta);
+    let mut joint = beams.clone();
+    joint.readings.extend(ranges.readings.iter().cloned());
+    let opts = options(&tracer_plan, CovarianceScaling::APriori);
+    let mut results = Vec::new();
+    for (name, c) in [("beams", &beams), ("tracer", &ranges), ("joint", &joint)] {
+        let sol = solve_campaign(&layout, c, &opts);
+        assert!(sol.converged, "{name}: {:?}", sol.warnings);
+        let (pred, actual) = predicted_and_actual_rms(&sol, &truth);
+        eprintln!(
+            "{name}: {} readings, {} functions, predicted volumetric uncertainty RMS {:.3} um, actual error RMS {:.3} um, chi2/dof {:.3}, {} iterations",
+            c.readings.len(),
+            sol.identifiability.identified_functions,
+            pred * 1e6,
+            actual * 1e6,
+            sol.stats.variance_factor,
+            sol.iterations
+        );
+        // A gross-error check only: one seed's volumetric RMS has few effective degrees of
+        // freedom (calibration is the Monte Carlo test's job).
+        assert!(actual < 3.0 * pred, "{name}: actual {actual} vs predicted {pred}");
+        results.push(pred);
+    }
+    assert!(results[2] < results[0] && results[2] < results[1], "{results:?}");
+}
