@@ -21,7 +21,8 @@ use crate::beam::{fit_line, orient_with_readings};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::gauge::{self, Gauge, GAUGE_DIM};
 use crate::identify::{self, Identifiability};
-use crate::model::{ErrorModel, ModelLayout, Sensitivity};
+use crate::kinematics::AxisFrame;
+use crate::model::{ErrorModel, ModelLayout};
 use crate::normal;
 use crate::nullspace::NullSpace;
 use crate::range::multilaterate;
@@ -80,7 +81,8 @@ pub struct SolveOptions {
     pub gauge: Gauge,
     pub noise: NoiseModel,
     pub max_iterations: usize,
-    /// Convergence: largest parameter step, in units of its own standard uncertainty.
+    /// Convergence: largest parameter step, in units of its conditional standard uncertainty
+    /// (the solve also stops when steps stagnate below 1e-3 of it: the floating-point floor).
     pub tolerance: f64,
     pub covariance_scaling: CovarianceScaling,
     /// Eigenvalue ratio below which a direction counts as unidentifiable.
@@ -95,7 +97,7 @@ impl Default for SolveOptions {
             gauge: Gauge::Patent,
             noise: NoiseModel::default(),
             max_iterations: 50,
-            tolerance: 1e-4,
+            tolerance: 1e-5,
             covariance_scaling: CovarianceScaling::Birge,
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
@@ -224,6 +226,8 @@ struct State {
     dirs: Vec<Vector3<f64>>,
     /// Actual reflector position of every reading at `d` (exact chain).
     actual: Vec<Point3<f64>>,
+    /// Per reading and axis, what the exact Jacobian needs.
+    frames: Vec<[AxisFrame; 3]>,
 }
 
 /// Normal equations of one linearisation.
@@ -246,18 +250,18 @@ struct Problem<'a> {
     /// Beam groups sharing a direction (same station and beam id): index of the first.
     dir_owner: Vec<usize>,
     sigma: Vec<f64>,
-    sens: Vec<Sensitivity>,
     /// Per-axis basis spans of every reading, when all six functions of each axis share one
     /// representation (the usual case): enables the tiled normal-matrix kernel.
     structure: Option<Structure>,
+    /// Reference energy of each model column (see `reference_energy`).
+    ref_energy: Vec<f64>,
 }
 
-/// Per reading and axis: first coefficient, basis values and lever arm.
+/// Per reading and axis: first coefficient and basis values.
 struct Structure {
     k: [usize; 3],
     first: Vec<[usize; 3]>,
     bvals: Vec<f64>,
-    lever: Vec<[Vector3<f64>; 3]>,
 }
 
 impl Structure {
@@ -276,7 +280,6 @@ impl Structure {
         let kt: usize = k.iter().sum();
         let mut first = Vec::with_capacity(obs.len());
         let mut bvals = Vec::with_capacity(obs.len() * kt);
-        let mut lever = Vec::with_capacity(obs.len());
         let mut buf = Vec::new();
         for i in 0..obs.len() {
             let mut fi = [0; 3];
@@ -288,9 +291,8 @@ impl Structure {
                 bvals.extend(buf.iter().map(|&(_, v)| v));
             }
             first.push(fi);
-            lever.push(Axis::ALL.map(|a| layout.topology.lever_arm(a, &obs.x[i], &obs.p[i])));
         }
-        Some(Structure { k, first, bvals, lever })
+        Some(Structure { k, first, bvals })
     }
 
     fn b(&self, i: usize, a: usize) -> &[f64] {
@@ -335,12 +337,6 @@ pub fn solve(
         })
         .collect();
     let structure = Structure::new(layout, obs);
-    // Generic sparse sensitivities, only needed when some axis mixes representations.
-    let sens: Vec<Sensitivity> = if structure.is_some() {
-        Vec::new()
-    } else {
-        (0..obs.len()).map(|i| layout.sensitivity(&obs.x[i], &obs.p[i])).collect()
-    };
 
     let mut warnings = Vec::new();
     // Initial state: zero errors, closed-form stations.
@@ -364,71 +360,112 @@ pub fn solve(
     let sigma: Vec<f64> = (0..obs.len())
         .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
         .collect();
-    let prob =
-        Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, sens, structure };
-    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new() };
+    let prob = Problem {
+        layout,
+        gauge: opts.gauge,
+        obs,
+        dims,
+        effects,
+        group_station,
+        dir_owner,
+        ref_energy: reference_energy(layout, obs, &sigma),
+        sigma,
+        structure,
+    };
+    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
 
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
     let n = prob.dims.n();
-    let gauge_cons = embed(&gauge::constraints(layout, opts.gauge), n);
+    let cons = embed(&gauge::constraints(layout, opts.gauge), n);
     let first = assemble(&prob, &state, true);
-    let mut scale = column_scale(&first.n);
-    let (mut ident, _, m0) = analyse_normal(&prob, &state, &first.n, &gauge_cons, &scale, opts);
-    let mut z = NullSpace::new(&gauge_cons, &scale);
-    let mut first_reduced = None;
-    if ident.extra_constraints.nrows() > 0 {
-        z = NullSpace::new(&stack_rows(&gauge_cons, &ident.extra_constraints), &scale);
-    } else {
-        first_reduced = m0;
-    }
+    let scale = column_scale(&first.n);
+    let gauge_z = NullSpace::new(&cons, &scale);
+    let m0 = reduced_matrix(&first, &gauge_z, &scale);
+    // The identifiability analysis fixes what the data leave undetermined. If the constrained
+    // matrix is still not positive definite (directions at the rounding level of a degenerate
+    // campaign), the analysis is repeated with a looser tolerance.
+    let mut tol = opts.rank_tolerance;
+    let (ident, z, first_reduced) = loop {
+        let ident = analyse_at(&prob, &state, &first.n, &m0, &gauge_z, &scale, tol);
+        let (z, m) = if ident.extra_constraints.nrows() > 0 {
+            let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
+            let m = reduced_matrix(&first, &z, &scale);
+            (z, m)
+        } else {
+            (NullSpace::new(&cons, &scale), m0.clone())
+        };
+        match Reduced::from_matrix(m.clone(), 0.0) {
+            Ok(_) => break (ident, z, Some(m)),
+            Err(e) if tol < 1e-4 => {
+                warnings.push(format!("the constrained normal matrix was not positive definite ({e}); undetermined directions re-detected with tolerance {:.0e}", tol * 1e3));
+                tol *= 1e3;
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let mut first_reduced = first_reduced;
+    warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
-    let d0 = state.d.clone();
     let mut normal = first;
-    let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, first_reduced, opts, nonlinear)?;
+    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
+    // refreshed matrix that fails to factorise is not adopted).
+    let factor = Reduced::from_matrix(first_reduced.take().expect("validated above"), 0.0)?;
+    let d0 = state.d.clone();
+    let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+    let (mut z, mut scale, mut ident) = (z, scale, ident);
     // Ranges are nonlinear: what the data determine depends on where the stations are, which
     // is only known at the solution (e.g. coplanar stations are only recognised once located).
-    // Analyse again with the stations as estimated and the machine errors at zero: that is
-    // what the geometry determines to first order. (At the estimated errors a direction
-    // unobservable to first order can look weakly observed through second-order terms, with a
-    // sign ambiguity: a ranged point in the stations' plane moved by +e or -e normal to it reads
-    // the same.) If this finds further undetermined directions, remove them from the change
-    // since the start (they do not affect the fit to first order) and iterate again under the
-    // new constraints.
+    // Analyse again with the stations as estimated and the machine errors at zero: what the
+    // geometry determines to first order. (At the estimated errors a direction unobservable to
+    // first order can look weakly observed through second-order terms, with a sign ambiguity: a
+    // ranged point in the stations' plane moved by +e or -e normal to it reads the same.) If
+    // this finds further undetermined directions, remove them from the change since the start
+    // (they do not change the fit to first order) and iterate again under the new constraints.
     if nonlinear {
         let mut nominal = state.clone();
         nominal.d[..layout.n_params].fill(0.0);
         update_directions(&prob, &mut nominal);
         let normal_nom = assemble(&prob, &nominal, true);
-        let (ident_f, scale_w, _) =
-            analyse_normal(&prob, &nominal, &normal_nom.n, &gauge_cons, &column_scale(&normal_nom.n), opts);
+        let scale_nom = column_scale(&normal_nom.n);
+        let z_nom = NullSpace::new(&cons, &scale_nom);
+        let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom);
+        let ident_f = analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, &z_nom, &scale_nom, opts.rank_tolerance);
         if ident_f.report.extra_null_dim > ident.report.extra_null_dim {
             let w = &ident_f.extra_constraints;
             for r in 0..w.nrows() {
                 // Rows are W^T S (unscaled); W has orthonormal columns in scaled coordinates.
                 let along: f64 = (0..n).map(|k| w[(r, k)] * (state.d[k] - d0[k])).sum();
                 for k in 0..n {
-                    state.d[k] -= along * w[(r, k)] / (scale_w[k] * scale_w[k]);
+                    state.d[k] -= along * w[(r, k)] / (scale_nom[k] * scale_nom[k]);
                 }
             }
             update_directions(&prob, &mut state);
             normal = assemble(&prob, &state, true);
             scale = column_scale(&normal.n);
-            z = NullSpace::new(&stack_rows(&gauge_cons, w), &scale);
-            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, None, opts, nonlinear)?;
-            lm.iterations += again.iterations;
-            lm.converged = again.converged;
-            lm.warnings.extend(again.warnings);
+            z = NullSpace::new(&stack_rows(&cons, w), &scale);
+            let factor =
+                Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+            lm = LmRun {
+                iterations: lm.iterations + again.iterations,
+                warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
+                ..again
+            };
+            for w in &ident_f.report.warnings {
+                if !warnings.contains(w) {
+                    warnings.push(w.clone());
+                }
+            }
             ident = ident_f;
         } else {
-            // Same null space: report the analysis at the solution (geometry as estimated).
+            // Same null space: report the analysis with the stations as located.
             ident.report = ident_f.report;
         }
     }
-    warnings.extend(ident.report.warnings.iter().cloned());
-    warnings.extend(lm.warnings);
-    let (iterations, converged) = (lm.iterations, lm.converged);
+    warnings.extend(lm.warnings.iter().cloned());
+    let (iterations, converged, mut factor) = (lm.iterations, lm.converged, lm.factor);
     if !converged {
         warnings.push(format!("the estimator did not converge in {} iterations", iterations));
     }
@@ -438,7 +475,11 @@ pub fn solve(
     // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
     // by a relative amount of the same order, far below the precision to which it is reported.
     let final_res = residuals(&prob, &state);
-    let cov_scaled = reduced_covariance(&normal, &z, &scale)?;
+    if nonlinear {
+        // At the solution, undamped; a tiny damping if rounding makes it indefinite.
+        factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+    }
+    let cov_scaled = z.embed(&factor.llt.inverse());
     let n_obs = obs.len();
     let n_free = z.dim();
     let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
@@ -517,92 +558,18 @@ pub fn solve(
     })
 }
 
-/// Identifiability analysis at a linearisation, with the tracer station geometry of that state.
-#[allow(clippy::too_many_arguments)]
-fn analyse_at(
-    prob: &Problem<'_>,
-    state: &State,
-    normal: &Mat<f64>,
-    m: &Mat<f64>,
-    z: &NullSpace,
-    scale: &[f64],
-    opts: &SolveOptions,
-) -> identify::Analysis {
-    let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
-    let mut summary = prob_summary(prob);
-    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
-    let mut ident = identify::analyse(prob.layout, &summary, normal, m, z, scale, opts.rank_tolerance);
-    if let Some(geometry) = geometry {
-        let said = geometry.statements();
-        if !said.is_empty() {
-            ident.report.warnings.push(format!(
-                "tracer station geometry: {} station(s){} (see the identifiability report)",
-                geometry.n_stations,
-                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
-                    ", coplanar"
-                } else {
-                    ""
-                }
-            ));
-        }
-        ident.report.statements.extend(said);
-    }
-    ident
-}
-
-/// Identifiability analysis of normal matrix `n` under the gauge constraints, with the columns
-/// that the data observe only negligibly (see [`weak_columns`]) masked out so that the analysis
-/// reports them as undetermined. Returns the analysis, the column scaling its constraint rows
-/// were built with and, when nothing was masked, the reduced matrix under the gauge
-/// constraints alone in `scale` (reused by the beam-only solve).
-fn analyse_normal(
-    prob: &Problem<'_>,
-    state: &State,
-    n: &Mat<f64>,
-    gauge_cons: &Mat<f64>,
-    scale: &[f64],
-    opts: &SolveOptions,
-) -> (identify::Analysis, Vec<f64>, Option<Mat<f64>>) {
-    let weak = weak_columns(n);
-    if weak.is_empty() {
-        let z = NullSpace::new(gauge_cons, scale);
-        let m = reduced_of(n, &z, scale);
-        let ident = analyse_at(prob, state, n, &m, &z, scale, opts);
-        return (ident, scale.to_vec(), Some(m));
-    }
-    let masked = Mat::from_fn(n.nrows(), n.ncols(), |i, j| if weak[i] || weak[j] { 0.0 } else { n[(i, j)] });
-    let sm = column_scale(&masked);
-    let z = NullSpace::new(gauge_cons, &sm);
-    let m = reduced_of(&masked, &z, &sm);
-    let ident = analyse_at(prob, state, &masked, &m, &z, &sm, opts);
-    (ident, sm, None)
-}
-
-/// Columns observed only negligibly: diagonal below [`identify::NEGLIGIBLE_RELATIVE_DIAGONAL`]
-/// of the largest, i.e. a standard uncertainty a million times that of the best-observed
-/// parameter. Jacobi scaling would otherwise blow such a column up to unit norm and the analysis
-/// would count it as determined (e.g. the error normal to the plane of coplanar tracer stations
-/// at the readings in that plane, seen only through the stations' tiny distance from it).
-fn weak_columns(n: &Mat<f64>) -> Vec<bool> {
-    let dmax = (0..n.nrows()).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
-    let floor = dmax * identify::NEGLIGIBLE_RELATIVE_DIAGONAL;
-    let weak: Vec<bool> = (0..n.nrows()).map(|k| n[(k, k)] > 0.0 && n[(k, k)] < floor).collect();
-    if weak.iter().any(|&w| w) {
-        weak
-    } else {
-        Vec::new()
-    }
-}
-
 /// Outcome of one run of [`levenberg_marquardt`].
 struct LmRun {
     iterations: usize,
     converged: bool,
+    /// Factorisation of the reduced matrix last in use (the frozen one for beams).
+    factor: Reduced,
     warnings: Vec<String>,
 }
 
 /// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
-/// constraints, from `state` with its normal equations `normal`; both are updated in place.
+/// constraints from `state` and its normal equations `normal`, both updated in place; `factor`
+/// is the factorisation of the reduced matrix to start from.
 #[allow(clippy::too_many_arguments)]
 fn levenberg_marquardt(
     prob: &Problem<'_>,
@@ -610,10 +577,10 @@ fn levenberg_marquardt(
     normal: &mut Normal,
     z: &NullSpace,
     scale: &[f64],
-    mut first_reduced: Option<Mat<f64>>,
+    mut factor: Reduced,
     opts: &SolveOptions,
     nonlinear: bool,
-) -> Result<LmRun, SolveError> {
+) -> LmRun {
     let n = prob.dims.n();
     let mut warnings = Vec::new();
     let mut mu = if nonlinear { 1e-4 } else { 0.0 };
@@ -623,26 +590,31 @@ fn levenberg_marquardt(
     // so for beam-only problems the normal matrix of the first linearisation is kept and only
     // the gradient is refreshed; the matrix is re-assembled once at the solution for the
     // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    let mut frozen: Option<Reduced> = None;
+    let mut last_step = f64::INFINITY;
+    let mut stalls = 0;
     for it in 0..opts.max_iterations {
         iterations = it + 1;
         let step = if nonlinear {
-            reduced_step(&Reduced::new(normal, z, scale, mu)?, normal, z, scale)
-        } else {
-            if frozen.is_none() {
-                frozen = Some(match first_reduced.take() {
-                    Some(m) => Reduced::from_matrix(m, 0.0)?,
-                    None => Reduced::new(normal, z, scale, 0.0)?,
-                });
+            match Reduced::new(normal, z, scale, mu) {
+                Ok(r) => reduced_step(&r, normal, z, scale),
+                Err(_) => {
+                    mu = (mu * 10.0).max(1e-6);
+                    continue;
+                }
             }
-            reduced_step(frozen.as_ref().unwrap(), normal, z, scale)
+        } else {
+            reduced_step(&factor, normal, z, scale)
         };
         let mut trial = state.clone();
         for k in 0..n {
             trial.d[k] += step.delta[k];
         }
         update_directions(prob, &mut trial);
-        let trial_normal = if nonlinear {
+        let ratio = step.max_sigma_ratio / last_step;
+        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
+        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
+        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let trial_normal = if refresh {
             assemble(prob, &trial, true)
         } else {
             let g = assemble(prob, &trial, false);
@@ -650,8 +622,8 @@ fn levenberg_marquardt(
         };
         if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
             if step.max_sigma_ratio < opts.tolerance {
-                // A negligible step that does not lower the cost: the minimum has been reached
-                // to round-off; raising the damping would only spend iterations.
+                // A negligible step that does not lower the cost: the minimum is reached to
+                // round-off; raising the damping would only spend iterations.
                 converged = true;
                 break;
             }
@@ -663,17 +635,26 @@ fn levenberg_marquardt(
             continue;
         }
         mu *= 0.1;
-        if std::env::var_os("VOLCAL_TRACE").is_some() {
-            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
-        }
         *state = trial;
         *normal = trial_normal;
-        if step.max_sigma_ratio < opts.tolerance {
+        if refresh && !nonlinear {
+            match Reduced::new(normal, z, scale, 0.0) {
+                Ok(r) => factor = r,
+                Err(_) => warnings
+                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
+            }
+        }
+        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
+        // row while already far below the uncertainty: the floating-point floor (the readings'
+        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
+        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
+        last_step = step.max_sigma_ratio;
+        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
             converged = true;
             break;
         }
     }
-    Ok(LmRun { iterations, converged, warnings })
+    LmRun { iterations, converged, factor, warnings }
 }
 
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {
@@ -702,7 +683,15 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
             offsets.push(v);
         }
     }
+    let mut coverage = [[f64::INFINITY, f64::NEG_INFINITY]; 3];
+    for x in &p.obs.x {
+        for a in 0..3 {
+            coverage[a][0] = coverage[a][0].min(x[a]);
+            coverage[a][1] = coverage[a][1].max(x[a]);
+        }
+    }
     identify::DataSummary {
+        coverage,
         gauge: p.gauge,
         probe_offsets: offsets,
         n_beams: p.obs.groups_of(ObsKind::Beam).count(),
@@ -728,6 +717,40 @@ fn tracer_geometry(p: &Problem<'_>, s: &State) -> crate::station_geometry::Stati
     crate::station_geometry::assess(&stations, &points)
 }
 
+/// Identifiability analysis at a linearisation (`identify::analyse`), with the geometry of the
+/// tracer stations of that state added to the report.
+#[allow(clippy::too_many_arguments)]
+fn analyse_at(
+    prob: &Problem<'_>,
+    state: &State,
+    n: &Mat<f64>,
+    m: &Mat<f64>,
+    z: &NullSpace,
+    scale: &[f64],
+    tol: f64,
+) -> identify::Analysis {
+    let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
+    let mut summary = prob_summary(prob);
+    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
+    let mut ident = identify::analyse(prob.layout, &summary, n, m, z, scale, tol);
+    if let Some(geometry) = geometry {
+        let said = geometry.statements();
+        if !said.is_empty() {
+            ident.report.warnings.push(format!(
+                "tracer station geometry: {} station(s){} (see the identifiability report)",
+                geometry.n_stations,
+                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
+                    ", coplanar"
+                } else {
+                    ""
+                }
+            ));
+        }
+        ident.report.statements.extend(said);
+    }
+    ident
+}
+
 /// Actual reflector position of reading `i` at the current iterate.
 fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
     s.actual[i]
@@ -738,7 +761,10 @@ fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
 /// (patent: the least-squares line of the machine points).
 fn update_directions(p: &Problem<'_>, s: &mut State) {
     let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
-    s.actual = (0..p.obs.len()).map(|i| chain.position(&p.obs.x[i], &p.obs.p[i])).collect();
+    let (actual, frames): (Vec<_>, Vec<_>) =
+        (0..p.obs.len()).map(|i| chain.position_with_frames(&p.obs.x[i], &p.obs.p[i])).unzip();
+    s.actual = actual;
+    s.frames = frames;
     for (gi, g) in p.obs.groups.iter().enumerate() {
         if g.kind != ObsKind::Beam || p.dir_owner[gi] != gi {
             continue;
@@ -797,34 +823,34 @@ fn row(
     idx.clear();
     val.clear();
     let (dir, mut f, actual) = predict_reading(p, s, gi, i);
-    match &p.structure {
-        Some(st) => {
-            // Row = sum over axes of (n, h x n) (x) basis values: n . de/du without forming de/du.
-            for a in 0..3 {
-                let hn = st.lever[i][a].cross(&dir);
-                let d = [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z];
-                let b = st.b(i, a);
-                let first = st.first[i][a];
-                for (f, &df) in d.iter().enumerate() {
-                    let col = p.layout.offsets[a * 6 + f] + first;
-                    for (k, &bk) in b.iter().enumerate() {
+    // Row = for each axis, the exact derivatives of n . P with respect to its six error values,
+    // times the basis values of its functions; then the squareness errors.
+    let x = &p.obs.x[i];
+    for a in 0..3 {
+        let fr = &s.frames[i][a];
+        let d = fr.projected(&dir);
+        let q = x[a];
+        for (f, &df) in d.iter().enumerate() {
+            let off = p.layout.offsets[a * 6 + f];
+            match &p.structure {
+                Some(st) => {
+                    let col = off + st.first[i][a];
+                    for (k, &bk) in st.b(i, a).iter().enumerate() {
                         idx.push(col + k);
                         val.push(df * bk);
                     }
                 }
-            }
-            let x = &p.obs.x[i];
-            for sq in crate::functions::Squareness::ALL {
-                idx.push(p.layout.squareness_index(sq));
-                val.push(dir.dot(&sq.direction_per_metre()) * sq.axis().coord(x));
-            }
-        }
-        None => {
-            for (k, v) in p.sens[i].project(&dir) {
-                idx.push(k);
-                val.push(v);
+                None => p.layout.bases[a * 6 + f].visit(q, false, |k, bk| {
+                    idx.push(off + k);
+                    val.push(df * bk);
+                }),
             }
         }
+    }
+    for sq in crate::functions::Squareness::ALL {
+        let a = sq.axis();
+        idx.push(p.layout.squareness_index(sq));
+        val.push(s.frames[i][a.index()].projected_squareness(&dir, sq, a.coord(x)));
     }
     let g = &p.obs.groups[gi];
     if g.kind == ObsKind::Range {
@@ -864,10 +890,7 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
     // Weighted column sums per group, scaled by 1/sqrt(W): N -= S S^T.
     let mut smat = if with_matrix { Mat::<f64>::zeros(n, ng) } else { Mat::zeros(0, 0) };
     let mut gsum = vec![0.0; n];
-    // Columns touched by the current group. Tracked by a flag, not by `gsum == 0`: a row may
-    // carry exact zeros (a table basis at a node, a zero lever arm), and a column listed twice
-    // would have its sum overwritten by zero when the group is flushed.
-    let mut in_group = vec![false; n];
+    let mut is_touched = vec![false; n];
     let mut touched: Vec<usize> = Vec::new();
     let (mut idx, mut val, mut ebuf) = (Vec::with_capacity(128), Vec::with_capacity(128), Vec::new());
     // Rows of the current group: (start offset into idx/val buffers, residual, weight).
@@ -913,8 +936,9 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             }
             for a in 0..len {
                 let ia = ri[a];
-                if !in_group[ia] {
-                    in_group[ia] = true;
+                // An explicit marker: a running sum can cancel to exactly zero mid-group.
+                if !is_touched[ia] {
+                    is_touched[ia] = true;
                     touched.push(ia);
                 }
                 gsum[ia] += w * rv[a];
@@ -923,14 +947,10 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
                 let i = rowobs[rows_seen];
                 let dir = dirs_of_rows[rows_seen];
                 let n_sq = p.layout.n_params - 3;
-                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| {
-                    let h = st.lever[i][a];
-                    let hn = h.cross(&dir);
-                    normal::AxisSegment {
-                        col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
-                        d: [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z],
-                        b: st.b(i, a),
-                    }
+                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| normal::AxisSegment {
+                    col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
+                    d: s.frames[i][a].projected(&dir),
+                    b: st.b(i, a),
                 });
                 let extras: Vec<(usize, f64)> =
                     ri.iter().zip(rv).filter(|(&c, _)| c >= n_sq).map(|(&c, &v)| (c, v)).collect();
@@ -958,7 +978,7 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             for &k in &touched {
                 smat[(k, gi)] = gsum[k] / sw;
                 gsum[k] = 0.0;
-                in_group[k] = false;
+                is_touched[k] = false;
             }
             touched.clear();
         }
@@ -968,6 +988,26 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
     }
     let mut nm = upper.to_mat();
     matmul(nm.as_mut(), Accum::Add, smat.as_ref(), smat.transpose(), -1.0, Par::Seq);
+    // Eliminating the origins computes `sum w a^2 - (sum w a)^2 / W`, which cancels for a column
+    // that is (nearly) constant within every line and leaves rounding noise of ~eps relative to
+    // the raw sum; the Jacobi scaling would amplify it by raw / centred. A column whose centred
+    // energy is below 1e-5 of its raw energy therefore carries no information this double-
+    // precision solve can resolve (the noise left elsewhere is then below 2e-11, under the rank
+    // tolerance): it is set exactly to zero, and the identifiability report names it.
+    // Likewise a model column whose centred energy is below 1e-10 of its reference energy (the
+    // energy it would have at its nominal first-order sensitivity: a sensitivity below 1e-5 of
+    // nominal, e.g. a beam orthogonal to a function up to rounding or seen only at second order)
+    // is not observed; the Jacobi scaling would otherwise promote it to information.
+    for k in 0..n {
+        let raw = upper.data[k * n + k];
+        let weak = k < p.ref_energy.len() && nm[(k, k)] <= NOMINAL_FLOOR * p.ref_energy[k];
+        if nm[(k, k)] <= CENTRED_FLOOR * raw || weak {
+            for j in 0..n {
+                nm[(k, j)] = 0.0;
+                nm[(j, k)] = 0.0;
+            }
+        }
+    }
     Normal { n: nm, b, cost }
 }
 
@@ -1001,15 +1041,8 @@ fn residuals(p: &Problem<'_>, s: &State) -> Residuals {
 }
 
 /// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
-///
-/// A column counts as unobserved below the same relative threshold as in the identifiability
-/// analysis: a table basis evaluated at a node leaves round-off (~1e-16) on the neighbouring
-/// coefficient, and scaling such a column up to unit norm would turn that round-off into a
-/// direction the solver believes it observes.
 fn column_scale(n: &Mat<f64>) -> Vec<f64> {
-    let dmax = (0..n.nrows()).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
-    let floor = 1e-300_f64.max(dmax * identify::UNOBSERVED_RELATIVE_DIAGONAL);
-    (0..n.nrows()).map(|k| if n[(k, k)] > floor { n[(k, k)].sqrt() } else { 1.0 }).collect()
+    (0..n.nrows()).map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt() } else { 1.0 }).collect()
 }
 
 /// Embeds a constraint block on `u` into the full parameter space.
@@ -1029,13 +1062,8 @@ struct Step {
 
 /// Reduced matrix `Z^T N_s Z` in scaled coordinates.
 fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
-    reduced_of(&normal.n, z, scale)
-}
-
-/// Reduced matrix `Z^T N_s Z` of a normal matrix in scaled coordinates.
-fn reduced_of(n_mat: &Mat<f64>, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
     let n = scale.len();
-    let ns = Mat::from_fn(n, n, |i, j| n_mat[(i, j)] / (scale[i] * scale[j]));
+    let ns = Mat::from_fn(n, n, |i, j| normal.n[(i, j)] / (scale[i] * scale[j]));
     z.project(&ns)
 }
 
@@ -1072,11 +1100,33 @@ fn reduced_step(red: &Reduced, normal: &Normal, z: &NullSpace, scale: &[f64]) ->
     Step { delta: (0..n).map(|i| ds[(i, 0)] / scale[i]).collect(), max_sigma_ratio: max_ratio }
 }
 
-/// Covariance in scaled coordinates: `Z (Z^T N_s Z)^-1 Z^T`.
-fn reduced_covariance(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Result<Mat<f64>, SolveError> {
-    let m = reduced_matrix(normal, z, scale);
-    let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
-    Ok(z.embed(&llt.inverse()))
+/// Smallest resolvable ratio of a column's centred to raw energy (see `assemble`).
+const CENTRED_FLOOR: f64 = 1e-5;
+/// Smallest ratio of a model column's energy to its reference energy (see `reference_energy`).
+const NOMINAL_FLOOR: f64 = 1e-10;
+
+/// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
+/// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
+/// largest probe offset) or the axis coordinate (squareness), squared and weighted.
+fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64]) -> Vec<f64> {
+    use crate::functions::{ErrorFunction, Motion, Squareness};
+    let t = &layout.travel;
+    let diag =
+        (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
+    let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let mut e = vec![0.0; layout.n_params];
+    for i in 0..obs.len() {
+        let w = 1.0 / (sigma[i] * sigma[i]);
+        for f in ErrorFunction::all() {
+            let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
+            let off = layout.offsets[f.index()];
+            layout.basis(f).visit(f.axis.coord(&obs.x[i]), false, |k, b| e[off + k] += w * (typ * b).powi(2));
+        }
+        for s in Squareness::ALL {
+            e[layout.squareness_index(s)] += w * s.axis().coord(&obs.x[i]).powi(2);
+        }
+    }
+    e
 }
 
 /// Number of gauge freedoms (re-exported for reports).
@@ -1085,14 +1135,120 @@ pub const GAUGE_FREEDOMS: usize = GAUGE_DIM;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::{LineGroup, Observations};
-    use crate::{ModelLayout, Representation, Topology, Travel};
+    use crate::axis::Travel;
+    use crate::campaign::{prepare, Campaign, CampaignMeta, Reading, ScaleExpansion};
+    use crate::repr::Representation;
+    use crate::topology::Topology;
 
-    /// The structured (tiled) assembly must equal the dense normal matrix `sum (a - mean)(a -
-    /// mean)^T` per group, also when rows carry exact zeros: readings exactly at table nodes and
-    /// at z = 0, where the lever arm of X vanishes (the paper's tracer path is full of both).
+    /// Lines parallel to X (a degenerate, symmetric geometry) with arbitrary readings.
+    fn problem_data() -> (ModelLayout, Observations) {
+        let layout = ModelLayout::uniform(
+            Topology::parse("FXYZ").unwrap(),
+            Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            Representation::BSpline { intervals: 5 },
+        );
+        let mut readings = Vec::new();
+        for (line, (y, z)) in [(0.1, -0.5), (0.4, -0.3), (0.7, -0.1)].into_iter().enumerate() {
+            for k in 0..15 {
+                let x = 0.05 + 0.9 * k as f64 / 14.0;
+                readings.push(Reading {
+                    kind: ObsKind::Beam,
+                    station: 0,
+                    line: line as u32,
+                    t_s: k as f64,
+                    l_m: x + 1e-6 * ((k * 7 + line) % 5) as f64,
+                    x: Point3::new(x, y, z),
+                    p: Vector3::new(0.0, 0.0, -0.1),
+                    air: None,
+                    machine_temp_c: None,
+                    velocity: None,
+                    beam_broken: false,
+                    source_line: 0,
+                });
+            }
+        }
+        let c = Campaign { meta: CampaignMeta::default(), readings };
+        let p = prepare(&c, &layout.travel, &ScaleExpansion::default()).unwrap();
+        (layout, p.obs)
+    }
+
     #[test]
-    fn structured_assembly_matches_dense_with_exact_zeros() {
+    fn assembly_matches_brute_force() {
+        let (layout, obs) = problem_data();
+        let dims = Dims { n_u: layout.n_params, stations: Vec::new(), n_e: 0 };
+        let n = dims.n();
+        let prob = Problem {
+            layout: &layout,
+            gauge: Gauge::Patent,
+            obs: &obs,
+            dims,
+            effects: &[],
+            group_station: vec![usize::MAX; obs.groups.len()],
+            dir_owner: (0..obs.groups.len()).collect(),
+            sigma: vec![1e-7; obs.len()],
+            structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
+        };
+        assert!(prob.structure.is_some());
+        let mut st = State {
+            d: vec![0.0; n],
+            dirs: vec![Vector3::zeros(); obs.groups.len()],
+            actual: Vec::new(),
+            frames: Vec::new(),
+        };
+        update_directions(&prob, &mut st);
+        let fast = assemble(&prob, &st, true);
+        let mut dense = Mat::<f64>::zeros(n, n);
+        let (mut idx, mut val, mut eb) = (Vec::new(), Vec::new(), Vec::new());
+        for (gi, g) in obs.groups.iter().enumerate() {
+            let mut rows = Vec::new();
+            for i in g.range() {
+                row(&prob, &st, gi, i, &mut idx, &mut val, &mut eb);
+                let mut a = vec![0.0; n];
+                for (&k, &v) in idx.iter().zip(&val) {
+                    a[k] += v;
+                }
+                rows.push(a);
+            }
+            let w = 1.0 / (1e-7 * 1e-7);
+            let mean: Vec<f64> = (0..n).map(|k| rows.iter().map(|r| r[k]).sum::<f64>() / rows.len() as f64).collect();
+            for r in &rows {
+                for i in 0..n {
+                    for j in 0..n {
+                        dense[(i, j)] += w * (r[i] - mean[i]) * (r[j] - mean[j]);
+                    }
+                }
+            }
+        }
+        let ev = fast.n.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let emax = ev.iter().cloned().fold(0.0, f64::max);
+        assert!(ev[0] > -1e-10 * emax, "normal matrix not PSD: {} relative", ev[0] / emax);
+        let sc = column_scale(&fast.n);
+        let z = NullSpace::new(&embed(&gauge::constraints(&layout, Gauge::Patent), n), &sc);
+        let m = reduced_matrix(&fast, &z, &sc);
+        let evm = m.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let mmax = evm.iter().cloned().fold(0.0, f64::max);
+        assert!(evm[0] > -1e-10 * mmax, "reduced matrix not PSD: {} relative", evm[0] / mmax);
+        let scale = (0..n).map(|i| dense[(i, i)]).fold(0.0, f64::max);
+        for i in 0..n {
+            for j in 0..n {
+                assert!(
+                    (fast.n[(i, j)] - dense[(i, j)]).abs() < 1e-9 * scale,
+                    "({i}, {j}): {} vs {}",
+                    fast.n[(i, j)],
+                    dense[(i, j)]
+                );
+            }
+        }
+    }
+
+    /// The structured (tiled) assembly equals the dense normal matrix `sum (a - mean)(a -
+    /// mean)^T` per group for tracer ranges too, with rows that carry exact zeros: readings
+    /// exactly at table nodes and at z = 0, where the lever arm of X vanishes (the paper's
+    /// tracer path is full of both).
+    #[test]
+    fn range_assembly_matches_dense_with_exact_zeros() {
+        use crate::campaign::LineGroup;
         let layout = ModelLayout::uniform(
             Topology::parse("FYXZ").unwrap(),
             Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]),
@@ -1125,8 +1281,8 @@ mod tests {
             group_station: vec![0, 1],
             dir_owner: vec![0, 1],
             sigma: vec![1.0; obs.len()],
-            sens: Vec::new(),
             structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
         };
         assert!(prob.structure.is_some());
         let n = prob.dims.n();
@@ -1136,7 +1292,7 @@ mod tests {
                 d[prob.dims.station_col(s) + k] = qq[k];
             }
         }
-        let mut state = State { d, dirs: vec![Vector3::zeros(); 2], actual: Vec::new() };
+        let mut state = State { d, dirs: vec![Vector3::zeros(); 2], actual: Vec::new(), frames: Vec::new() };
         update_directions(&prob, &mut state);
         let got = assemble(&prob, &state, true).n;
         let mut dense = Mat::<f64>::zeros(n, n);

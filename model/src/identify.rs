@@ -29,6 +29,8 @@ pub struct DataSummary {
     pub n_effect_params: usize,
     pub effect_col: usize,
     pub station_col: usize,
+    /// Range of the indicated coordinates of the readings, per axis.
+    pub coverage: [[f64; 2]; 3],
     /// Distinct positions of each axis (X, Y, Z) where the data have readings, sorted, metres.
     pub axis_positions: [Vec<f64>; 3],
     /// Tracer readings that lie in the common plane of coplanar stations (see
@@ -120,15 +122,6 @@ pub(crate) struct Analysis {
     /// Rows to append to the constraints (empty when everything is identifiable).
     pub extra_constraints: Mat<f64>,
 }
-
-/// A parameter whose normal-matrix diagonal is below this fraction of the largest diagonal is
-/// not observed (its column norm is round-off, 1e-14 of the best-observed column).
-pub(crate) const UNOBSERVED_RELATIVE_DIAGONAL: f64 = 1e-28;
-
-/// A parameter whose diagonal is below this fraction of the largest is observed only
-/// negligibly (standard uncertainty 1e6 times that of the best-observed one, millimetres where
-/// the best is nanometres): it is reported and constrained as undetermined.
-pub(crate) const NEGLIGIBLE_RELATIVE_DIAGONAL: f64 = 1e-12;
 
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
 /// reported as observed by the data.
@@ -317,10 +310,8 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
     };
     // Not observed: every column of the unit is zero.
     let dmax = (0..dim).map(|k| n[(k, k)].abs()).fold(0.0, f64::max);
-    let unobserved: Vec<bool> = cols
-        .iter()
-        .map(|c| c.iter().all(|&k| n[(k, k)].abs() <= 1e-300_f64.max(dmax * UNOBSERVED_RELATIVE_DIAGONAL)))
-        .collect();
+    let unobserved: Vec<bool> =
+        cols.iter().map(|c| c.iter().all(|&k| n[(k, k)].abs() <= 1e-300_f64.max(dmax * 1e-28))).collect();
     // Involvement of each unit in the null space: trace of its diagonal block of W W^T.
     let k = w.ncols();
     let block = |a: &[usize], b: &[usize]| -> f64 {
@@ -431,8 +422,8 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         };
         st.push(format!("{} ({}) cannot be identified from these data: {}.", name(&units[i]), desc(&units[i]), reason));
     }
-    // Functions that are undetermined only because the data do not visit all of their axis's
-    // travel: one statement per axis instead of one "combination" per function.
+    // Functions that are undetermined only because the data visit their axis at a few positions
+    // (gaps inside the covered range): one statement per axis.
     let is_station = |u: &Unit| matches!(u, Unit::Other(s) if s.starts_with("station"));
     let partial = |g: &Vec<usize>| -> Option<crate::axis::Axis> {
         match (g.len(), &units[g[0]]) {
@@ -454,7 +445,29 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
             ));
         }
     }
-    for g in groups.iter().filter(|g| partial(g).is_none()) {
+    for g in groups.iter().filter(|g| g.len() == 1 && partial(g).is_none()) {
+        let i = g[0];
+        let axis_note = match &units[i] {
+            Unit::F(f) => coverage_note(summary, layout, f.axis),
+            _ => String::new(),
+        };
+        let plane_note = if summary.readings_in_station_plane > 0 {
+            format!(
+                "; {} tracer readings lie in the plane of the coplanar stations, where no range sees the error normal to that plane (see below)",
+                summary.readings_in_station_plane
+            )
+        } else {
+            String::new()
+        };
+        st.push(format!(
+            "{} ({}) is only partly determined: part of its shape along the travel is not observed{}{}.",
+            name(&units[i]),
+            desc(&units[i]),
+            axis_note,
+            plane_note
+        ));
+    }
+    for g in groups.iter().filter(|g| g.len() > 1) {
         let names: Vec<String> = g.iter().map(|&i| name(&units[i])).collect();
         let last_rot =
             g.iter().any(|&i| matches!(&units[i], Unit::F(f) if f.motion == Motion::Rotation && f.axis == last));
@@ -480,10 +493,12 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         } else {
             "; more beam directions or probe offsets are needed to separate them".into()
         };
-        if names.len() == 1 {
-            st.push(format!("{} is only partly determined: a combination of its values is not{}.", names[0], hint));
-        } else {
-            st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
+        st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
+    }
+    for a in crate::axis::Axis::ALL {
+        let note = coverage_note(summary, layout, a);
+        if !note.is_empty() && report.extra_null_dim > 0 {
+            st.push(format!("Coverage: {}.", note.trim_start_matches("; ")));
         }
     }
     if report.constraint_conditioning < 1e-8 {
@@ -493,4 +508,15 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         );
     }
     report.statements = st;
+}
+
+/// `": the data cover X only over [a, b] m of its travel [lo, hi] m"` when less than 95 % of an
+/// axis's travel is covered by the readings, else empty.
+fn coverage_note(summary: &DataSummary, layout: &ModelLayout, a: crate::axis::Axis) -> String {
+    let [lo, hi] = layout.travel.range(a);
+    let [c0, c1] = summary.coverage[a.index()];
+    if c1 - c0 >= 0.95 * (hi - lo) {
+        return String::new();
+    }
+    format!("; the readings cover {} only over [{c0:.3}, {c1:.3}] m of its travel [{lo:.3}, {hi:.3}] m, so its functions are undetermined beyond", a.letter())
 }
