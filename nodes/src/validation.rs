@@ -114,25 +114,27 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
     for r in results {
         let l = &r.line;
         let _ = writeln!(out, "Line {}: {} -> {} mm, {:.0} mm", l.name, mm(&l.start), mm(&l.end), l.length() * 1e3);
+        // Targets: prediction, and with a measurement the interferometer and the difference.
+        let mut head = format!("  {:>8}  {:>26}  {:>11}  {:>11}", "s/mm", "X/mm", "pred/um", "U95/um");
+        if r.comparison.is_some() {
+            head.push_str(&format!("  {:>11}  {:>7}", "LI/um", "diff/um"));
+        }
+        let _ = writeln!(out, "{head}");
+        for (i, p) in r.predicted.iter().enumerate() {
+            let mut row = format!(
+                "  {:>8.1}  {:>26}  {:>11.3}  {:>11.3}",
+                p.s_m * 1e3,
+                mm(&p.x),
+                p.deviation_m * 1e6,
+                2.0 * p.sigma_m * 1e6
+            );
+            if let Some(k) = r.comparison.as_ref().map(|c| &c.points[i]) {
+                row.push_str(&format!("  {:>11.3}  {:>7.3}", k.measured_m * 1e6, k.difference_m * 1e6));
+            }
+            let _ = writeln!(out, "{row}");
+        }
         match &r.comparison {
             Some(c) => {
-                let _ = writeln!(
-                    out,
-                    "  {:>8}  {:>26}  {:>11}  {:>11}  {:>11}  {:>5}",
-                    "s/mm", "X/mm", "pred/um", "U95/um", "LI/um", "diff/um"
-                );
-                for (p, k) in r.predicted.iter().zip(&c.points) {
-                    let _ = writeln!(
-                        out,
-                        "  {:>8.1}  {:>26}  {:>11.3}  {:>11.3}  {:>11.3}  {:>7.3}",
-                        p.s_m * 1e3,
-                        mm(&p.x),
-                        p.deviation_m * 1e6,
-                        2.0 * p.sigma_m * 1e6,
-                        k.measured_m * 1e6,
-                        k.difference_m * 1e6
-                    );
-                }
                 let paper = reference
                     .iter()
                     .find(|(n, _)| *n == l.name)
@@ -148,17 +150,6 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
                 );
             }
             None => {
-                let _ = writeln!(out, "  {:>8}  {:>26}  {:>11}  {:>11}", "s/mm", "X/mm", "pred/um", "U95/um");
-                for p in &r.predicted {
-                    let _ = writeln!(
-                        out,
-                        "  {:>8.1}  {:>26}  {:>11.3}  {:>11.3}",
-                        p.s_m * 1e3,
-                        mm(&p.x),
-                        p.deviation_m * 1e6,
-                        2.0 * p.sigma_m * 1e6
-                    );
-                }
                 let (lo, hi) = r
                     .predicted
                     .iter()
