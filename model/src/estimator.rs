@@ -618,17 +618,8 @@ pub fn fit<'a>(
     // campaign), the analysis is repeated with a looser tolerance.
     let mut tol = opts.rank_tolerance;
     let mut f0 = f0;
-    let (ident, z, mut factor) = loop {
-        let ident = identify::analyse(
-            layout,
-            &prob_summary(&prob),
-            &first.n,
-            &m0,
-            f0.as_ref().map(|f| &f.llt),
-            &gauge_z,
-            &scale,
-            tol,
-        );
+    let (ident, z, factor) = loop {
+        let ident = analyse_at(&prob, &state, &first.n, &m0, f0.as_ref().map(|f| &f.llt), &gauge_z, &scale, tol);
         if ident.extra_constraints.nrows() == 0 {
             if let Some(f) = f0.take() {
                 break (ident, NullSpace::new(&cons, &scale), f);
@@ -650,69 +641,61 @@ pub fn fit<'a>(
     warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
-    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
     let mut normal = first;
-    let mut converged = false;
-    let mut iterations = 0;
-    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
-    // so for beam-only problems the normal matrix of the first linearisation is kept and only
-    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
-    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
-    // refreshed matrix that fails to factorise is not adopted).
-    let mut last_step = f64::INFINITY;
-    let mut stalls = 0;
-    for it in 0..opts.max_iterations {
-        iterations = it + 1;
-        let step = if nonlinear {
-            match Reduced::new(&normal, &z, &scale, mu) {
-                Ok(r) => reduced_step(&r, &normal, &z, &scale),
-                Err(_) => {
-                    mu = (mu * 10.0).max(1e-6);
-                    continue;
+    let d0 = state.d.clone();
+    let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+    let (mut z, mut scale, mut ident) = (z, scale, ident);
+    // Ranges are nonlinear: what the data determine depends on where the stations are, which
+    // is only known at the solution (e.g. coplanar stations are only recognised once located).
+    // Analyse again with the stations as estimated and the machine errors at zero: what the
+    // geometry determines to first order. (At the estimated errors a direction unobservable to
+    // first order can look weakly observed through second-order terms, with a sign ambiguity: a
+    // ranged point in the stations' plane moved by +e or -e normal to it reads the same.) If
+    // this finds further undetermined directions, remove them from the change since the start
+    // (they do not change the fit to first order) and iterate again under the new constraints.
+    if nonlinear {
+        let mut nominal = state.clone();
+        nominal.d[..layout.n_params].fill(0.0);
+        update_directions(&prob, &mut nominal);
+        let normal_nom = assemble(&prob, &nominal);
+        let scale_nom = column_scale(&normal_nom.n);
+        let z_nom = NullSpace::new(&cons, &scale_nom);
+        let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom);
+        let ident_f = analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, None, &z_nom, &scale_nom, opts.rank_tolerance);
+        if ident_f.report.extra_null_dim > ident.report.extra_null_dim {
+            let w = &ident_f.extra_constraints;
+            for r in 0..w.nrows() {
+                // Rows are W^T S (unscaled); W has orthonormal columns in scaled coordinates.
+                let along: f64 = (0..n).map(|k| w[(r, k)] * (state.d[k] - d0[k])).sum();
+                for k in 0..n {
+                    state.d[k] -= along * w[(r, k)] / (scale_nom[k] * scale_nom[k]);
                 }
             }
+            update_directions(&prob, &mut state);
+            normal = assemble(&prob, &state);
+            scale = column_scale(&normal.n);
+            z = NullSpace::new(&stack_rows(&cons, w), &scale);
+            let factor =
+                Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+            lm = LmRun {
+                iterations: lm.iterations + again.iterations,
+                warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
+                ..again
+            };
+            for w in &ident_f.report.warnings {
+                if !warnings.contains(w) {
+                    warnings.push(w.clone());
+                }
+            }
+            ident = ident_f;
         } else {
-            reduced_step(&factor, &normal, &z, &scale)
-        };
-        let mut trial = state.clone();
-        for k in 0..n {
-            trial.d[k] += step.delta[k];
-        }
-        update_directions(&prob, &mut trial);
-        let ratio = step.max_sigma_ratio / last_step;
-        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
-        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
-        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
-        let trial_normal = if refresh { assemble(&prob, &trial) } else { gradient(&prob, &trial) };
-        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
-            mu = (mu * 10.0).max(1e-6);
-            if mu > 1e12 {
-                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
-                break;
-            }
-            continue;
-        }
-        mu *= 0.1;
-        state = trial;
-        normal = trial_normal;
-        if refresh && !nonlinear {
-            match Reduced::new(&normal, &z, &scale, 0.0) {
-                Ok(r) => factor = r,
-                Err(_) => warnings
-                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
-            }
-        }
-        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
-        // row while already far below the uncertainty: the floating-point floor (the readings'
-        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
-        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
-        last_step = step.max_sigma_ratio;
-        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
-            converged = true;
-            break;
+            // Same null space: report the analysis with the stations as located.
+            ident.report = ident_f.report;
         }
     }
+    warnings.extend(lm.warnings.iter().cloned());
+    let (iterations, converged, mut factor) = (lm.iterations, lm.converged, lm.factor);
     if !converged {
         warnings.push(format!("the estimator did not converge in {} iterations", iterations));
     }
@@ -806,6 +789,102 @@ pub fn fit<'a>(
     Ok(Fit { prob, state, z, factor, scale, solution, rows: std::cell::OnceCell::new() })
 }
 
+/// Outcome of one run of [`levenberg_marquardt`].
+struct LmRun {
+    iterations: usize,
+    converged: bool,
+    /// Factorisation of the reduced matrix last in use (the frozen one for beams).
+    factor: Reduced,
+    warnings: Vec<String>,
+}
+
+/// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
+/// constraints from `state` and its normal equations `normal`, both updated in place; `factor`
+/// is the factorisation of the reduced matrix to start from.
+#[allow(clippy::too_many_arguments)]
+fn levenberg_marquardt(
+    prob: &Problem<'_>,
+    state: &mut State,
+    normal: &mut Normal,
+    z: &NullSpace,
+    scale: &[f64],
+    mut factor: Reduced,
+    opts: &SolveOptions,
+    nonlinear: bool,
+) -> LmRun {
+    let n = prob.dims.n();
+    let mut warnings = Vec::new();
+    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
+    let mut converged = false;
+    let mut iterations = 0;
+    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
+    // so for beam-only problems the normal matrix of the first linearisation is kept and only
+    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
+    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
+    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
+    // refreshed matrix that fails to factorise is not adopted).
+    let mut last_step = f64::INFINITY;
+    let mut stalls = 0;
+    for it in 0..opts.max_iterations {
+        iterations = it + 1;
+        let step = if nonlinear {
+            match Reduced::new(normal, z, scale, mu) {
+                Ok(r) => reduced_step(&r, normal, z, scale),
+                Err(_) => {
+                    mu = (mu * 10.0).max(1e-6);
+                    continue;
+                }
+            }
+        } else {
+            reduced_step(&factor, normal, z, scale)
+        };
+        let mut trial = state.clone();
+        for k in 0..n {
+            trial.d[k] += step.delta[k];
+        }
+        update_directions(prob, &mut trial);
+        let ratio = step.max_sigma_ratio / last_step;
+        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
+        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
+        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let trial_normal = if refresh { assemble(prob, &trial) } else { gradient(prob, &trial) };
+        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+            if step.max_sigma_ratio < opts.tolerance {
+                // A negligible step that does not lower the cost: the minimum is reached to
+                // round-off; raising the damping would only spend iterations.
+                converged = true;
+                break;
+            }
+            mu = (mu * 10.0).max(1e-6);
+            if mu > 1e12 {
+                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
+                break;
+            }
+            continue;
+        }
+        mu *= 0.1;
+        *state = trial;
+        *normal = trial_normal;
+        if refresh && !nonlinear {
+            match Reduced::new(normal, z, scale, 0.0) {
+                Ok(r) => factor = r,
+                Err(_) => warnings
+                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
+            }
+        }
+        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
+        // row while already far below the uncertainty: the floating-point floor (the readings'
+        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
+        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
+        last_step = step.max_sigma_ratio;
+        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
+            converged = true;
+            break;
+        }
+    }
+    LmRun { iterations, converged, factor, warnings }
+}
+
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {
     let mut pts = Vec::new();
     let mut ls = Vec::new();
@@ -848,7 +927,57 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
         n_effect_params: p.dims.n_e,
         effect_col: p.dims.effect_col(),
         station_col: p.dims.n_u,
+        axis_positions: identify::DataSummary::positions_of(&p.obs.x),
+        readings_in_station_plane: 0,
     }
+}
+
+/// Geometry of the tracer stations at the current iterate and of the points they measured.
+fn tracer_geometry(p: &Problem<'_>, s: &State) -> crate::station_geometry::StationGeometry {
+    let stations: Vec<Point3<f64>> = (0..p.dims.stations.len())
+        .map(|k| {
+            let c = p.dims.station_col(k);
+            Point3::new(s.d[c], s.d[c + 1], s.d[c + 2])
+        })
+        .collect();
+    let points: Vec<Point3<f64>> =
+        p.obs.groups_of(ObsKind::Range).flat_map(|(_, g)| g.range()).map(|i| p.obs.x[i] + p.obs.p[i]).collect();
+    crate::station_geometry::assess(&stations, &points)
+}
+
+/// Identifiability analysis at a linearisation (`identify::analyse`), with the geometry of the
+/// tracer stations of that state added to the report.
+#[allow(clippy::too_many_arguments)]
+fn analyse_at(
+    prob: &Problem<'_>,
+    state: &State,
+    n: &Mat<f64>,
+    m: &Mat<f64>,
+    m_llt: Option<&faer::linalg::solvers::Llt<f64>>,
+    z: &NullSpace,
+    scale: &[f64],
+    tol: f64,
+) -> identify::Analysis {
+    let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
+    let mut summary = prob_summary(prob);
+    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
+    let mut ident = identify::analyse(prob.layout, &summary, n, m, m_llt, z, scale, tol);
+    if let Some(geometry) = geometry {
+        let said = geometry.statements();
+        if !said.is_empty() {
+            ident.report.warnings.push(format!(
+                "tracer station geometry: {} station(s){} (see the identifiability report)",
+                geometry.n_stations,
+                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
+                    ", coplanar"
+                } else {
+                    ""
+                }
+            ));
+        }
+        ident.report.statements.extend(said);
+    }
+    ident
 }
 
 /// Actual reflector position of reading `i` at the current iterate.
@@ -1379,6 +1508,96 @@ mod tests {
                     (fast.n[(i, j)] - dense[(i, j)]).abs() < 1e-9 * scale,
                     "({i}, {j}): {} vs {}",
                     fast.n[(i, j)],
+                    dense[(i, j)]
+                );
+            }
+        }
+    }
+
+    /// The structured (tiled) assembly equals the dense normal matrix `sum (a - mean)(a -
+    /// mean)^T` per group for tracer ranges too, with rows that carry exact zeros: readings
+    /// exactly at table nodes and at z = 0, where the lever arm of X vanishes (the paper's
+    /// tracer path is full of both).
+    #[test]
+    fn range_assembly_matches_dense_with_exact_zeros() {
+        use crate::campaign::LineGroup;
+        let layout = ModelLayout::uniform(
+            Topology::parse("FYXZ").unwrap(),
+            Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]),
+            Representation::Table { nodes: 11 },
+        );
+        let q = [Point3::new(-0.1, -0.6, -0.8), Point3::new(0.8, 0.1, -0.6)];
+        let mut obs = Observations::default();
+        for (s, qq) in q.iter().enumerate() {
+            let start = obs.len();
+            for i in 0..=20 {
+                let x = Point3::new(0.035 * i as f64, -0.05 * (i % 11) as f64, -0.35 * (i % 3) as f64);
+                obs.x.push(x);
+                obs.p.push(Vector3::zeros());
+                obs.l.push((x - qq).norm());
+                obs.t.push(0.0);
+                obs.velocity.push(None);
+                obs.air.push(None);
+                obs.reading.push(obs.reading.len());
+            }
+            let g = LineGroup { kind: ObsKind::Range, station: s as u32, line: 0, segment: 0, start, end: obs.len() };
+            obs.groups.push(g);
+        }
+        let stations = obs.stations(ObsKind::Range);
+        let prob = Problem {
+            layout: &layout,
+            gauge: Gauge::Datum,
+            obs: &obs,
+            dims: Dims { n_u: layout.n_params, stations, n_e: 0 },
+            effects: &[],
+            group_station: vec![0, 1],
+            dir_owner: vec![0, 1],
+            sigma: vec![1.0; obs.len()],
+            structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
+        };
+        assert!(prob.structure.is_some());
+        let n = prob.dims.n();
+        let mut d = vec![0.0; n];
+        for (s, qq) in q.iter().enumerate() {
+            for k in 0..3 {
+                d[prob.dims.station_col(s) + k] = qq[k];
+            }
+        }
+        let mut state = State { d, dirs: vec![Vector3::zeros(); 2], actual: Vec::new(), frames: Vec::new() };
+        update_directions(&prob, &mut state);
+        let got = assemble(&prob, &state).n;
+        let mut dense = Mat::<f64>::zeros(n, n);
+        for (s, qq) in q.iter().enumerate() {
+            let rows: Vec<Vec<f64>> = obs.groups[s]
+                .range()
+                .map(|i| {
+                    let dir = (obs.x[i] - qq).normalize();
+                    let mut r = vec![0.0; n];
+                    for (k, v) in layout.sensitivity(&obs.x[i], &obs.p[i]).project(&dir) {
+                        r[k] += v;
+                    }
+                    for k in 0..3 {
+                        r[prob.dims.station_col(s) + k] = -dir[k];
+                    }
+                    r
+                })
+                .collect();
+            let mean: Vec<f64> = (0..n).map(|c| rows.iter().map(|r| r[c]).sum::<f64>() / rows.len() as f64).collect();
+            for r in &rows {
+                for i in 0..n {
+                    for j in 0..n {
+                        dense[(i, j)] += (r[i] - mean[i]) * (r[j] - mean[j]);
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            for j in 0..n {
+                assert!(
+                    (got[(i, j)] - dense[(i, j)]).abs() < 1e-12,
+                    "({i}, {j}): {} vs {}",
+                    got[(i, j)],
                     dense[(i, j)]
                 );
             }

@@ -12,6 +12,8 @@
 pub mod effects;
 pub mod inject;
 pub mod instruments;
+pub mod line_measurement;
+pub mod paper;
 pub mod plan;
 pub mod simulate;
 pub mod truth;
