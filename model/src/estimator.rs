@@ -89,6 +89,8 @@ pub struct SolveOptions {
     pub rank_tolerance: f64,
     /// Initial station positions for tracer stations (by station id); closed-form otherwise.
     pub initial_stations: Vec<(u32, Point3<f64>)>,
+    /// Use only the line groups where this is true (cross-validation); all when `None`.
+    pub group_mask: Option<Vec<bool>>,
 }
 
 impl Default for SolveOptions {
@@ -101,6 +103,7 @@ impl Default for SolveOptions {
             covariance_scaling: CovarianceScaling::Birge,
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
+            group_mask: None,
         }
     }
 }
@@ -257,6 +260,8 @@ struct Problem<'a> {
     structure: Option<Structure>,
     /// Reference energy of each model column (see `reference_energy`).
     ref_energy: Vec<f64>,
+    /// Groups taking part in the fit ([`SolveOptions::group_mask`]).
+    active: Vec<bool>,
 }
 
 /// Per reading and axis: first coefficient and basis values.
@@ -567,6 +572,16 @@ pub fn fit<'a>(
         })
         .collect();
     let structure = Structure::new(layout, obs);
+    let mut kind_of = vec![ObsKind::Beam; obs.len()];
+    for g in &obs.groups {
+        for i in g.range() {
+            kind_of[i] = g.kind;
+        }
+    }
+    let active: Vec<bool> = match &opts.group_mask {
+        Some(m) if m.len() == obs.groups.len() => m.clone(),
+        _ => vec![true; obs.groups.len()],
+    };
 
     let mut warnings = Vec::new();
     // Initial state: zero errors, closed-form stations.
@@ -587,9 +602,7 @@ pub fn fit<'a>(
             }
         }
     }
-    let sigma: Vec<f64> = (0..obs.len())
-        .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
-        .collect();
+    let sigma: Vec<f64> = (0..obs.len()).map(|i| opts.noise.sigma(kind_of[i], ranges_at_init[i])).collect();
     let prob = Problem {
         layout,
         gauge: opts.gauge,
@@ -598,7 +611,8 @@ pub fn fit<'a>(
         effects,
         group_station,
         dir_owner,
-        ref_energy: reference_energy(layout, obs, &sigma),
+        ref_energy: reference_energy(layout, obs, &sigma, &active),
+        active,
         sigma,
         structure,
     };
@@ -710,9 +724,10 @@ pub fn fit<'a>(
         factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
     }
     let cov_scaled = z.embed(&factor.llt.inverse());
-    let n_obs = obs.len();
+    let active_groups: Vec<usize> = (0..obs.groups.len()).filter(|&g| prob.active[g]).collect();
+    let n_obs: usize = active_groups.iter().map(|&g| obs.groups[g].len()).sum();
     let n_free = z.dim();
-    let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
+    let dof = n_obs.saturating_sub(n_free + active_groups.len()).max(1);
     let chi2 = normal.cost;
     let vf = chi2 / dof as f64;
     let cov_factor = match opts.covariance_scaling {
@@ -769,7 +784,10 @@ pub fn fit<'a>(
             }
         })
         .collect();
-    let rms = (final_res.residual.iter().map(|v| v * v).sum::<f64>() / n_obs as f64).sqrt();
+    let rms =
+        (active_groups.iter().flat_map(|&g| obs.groups[g].range()).map(|i| final_res.residual[i].powi(2)).sum::<f64>()
+            / n_obs.max(1) as f64)
+            .sqrt();
     let model = ErrorModel { layout: layout.clone(), u: state.d[..n_u].to_vec() };
     let solution = Solution {
         model,
@@ -1146,6 +1164,9 @@ fn gradient(p: &Problem<'_>, s: &State) -> Normal {
     let mut dirs: Vec<Vector3<f64>> = Vec::new();
     let mut regs: Vec<f64> = Vec::new();
     for (gi, g) in p.obs.groups.iter().enumerate() {
+        if !p.active[gi] {
+            continue;
+        }
         dirs.clear();
         regs.clear();
         let (mut wsum, mut wr) = (0.0, 0.0);
@@ -1200,6 +1221,9 @@ fn assemble(p: &Problem<'_>, s: &State) -> Normal {
     let (mut gidx, mut gval): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
     let mut cost = 0.0;
     for (gi, g) in p.obs.groups.iter().enumerate() {
+        if !p.active[gi] {
+            continue;
+        }
         rows.clear();
         gidx.clear();
         gval.clear();
@@ -1380,14 +1404,14 @@ const NOMINAL_FLOOR: f64 = 1e-10;
 /// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
 /// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
 /// largest probe offset) or the axis coordinate (squareness), squared and weighted.
-fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64]) -> Vec<f64> {
+fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], active: &[bool]) -> Vec<f64> {
     use crate::functions::{ErrorFunction, Motion, Squareness};
     let t = &layout.travel;
     let diag =
         (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
     let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
     let mut e = vec![0.0; layout.n_params];
-    for i in 0..obs.len() {
+    for i in obs.groups.iter().enumerate().filter(|(g, _)| active[*g]).flat_map(|(_, g)| g.range()) {
         let w = 1.0 / (sigma[i] * sigma[i]);
         for f in ErrorFunction::all() {
             let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
@@ -1460,6 +1484,7 @@ mod tests {
             sigma: vec![1e-7; obs.len()],
             structure: Structure::new(&layout, &obs),
             ref_energy: Vec::new(),
+            active: vec![true; obs.groups.len()],
         };
         assert!(prob.structure.is_some());
         let mut st = State {
@@ -1555,6 +1580,7 @@ mod tests {
             sigma: vec![1.0; obs.len()],
             structure: Structure::new(&layout, &obs),
             ref_energy: Vec::new(),
+            active: vec![true; obs.groups.len()],
         };
         assert!(prob.structure.is_some());
         let n = prob.dims.n();

@@ -24,7 +24,7 @@ fn main() {
     for seed in 0..seeds {
         let mut cfg = sim_config(&m, plan.clone(), 100 + seed);
         cfg.environment.record_air = true;
-        cfg.environment.air_temp_rate_k_per_h = if spec.starts_with("air") { 1.0 } else { 0.0 };
+        cfg.environment.air_temp_rate_k_per_h = if spec.contains("air") { 2.5 } else { 0.0 };
         let ctx = EffectContext {
             air_start: cfg.environment.air,
             wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
@@ -68,6 +68,23 @@ fn main() {
         }
         for l in d.locations.iter().take(4) {
             println!("  loc {} {} share {:.2} p {:.1e}", l.kind, l.label, l.share, l.p_value);
+        }
+        if std::env::var_os("ROUNDS").is_some() {
+            for (k, r) in d.rounds.iter().enumerate() {
+                for c in r {
+                    println!(
+                        "  round {k}: {:<20} dchi2 {:>9.1} rank {:>3} p {:.1e} ev {:>8.1} share {:.2} cv {:?} {}",
+                        c.id,
+                        c.delta_chi2,
+                        c.rank,
+                        c.p_value,
+                        c.evidence,
+                        c.share,
+                        c.cv_gain.map(|v| v.round()),
+                        if c.accepted { "ACCEPTED" } else { "" }
+                    );
+                }
+            }
         }
         let truth: Vec<String> = out.truth.injected.iter().map(|i| format!("{} {:?}", i.id, i.parameters)).collect();
         println!("  truth: {truth:?}");

@@ -171,13 +171,7 @@ fn spectrum(
     alpha: f64,
 ) -> Option<Location> {
     let (periods, tests) = period_grid(obs, geo, dirs, a)?;
-    let mut best = (0.0, 0.0);
-    for &lam in &periods {
-        let s = periodogram(obs, geo, dirs, z, a, lam);
-        if s > best.0 {
-            best = (s, lam);
-        }
-    }
+    let best = best_period(obs, dirs, z, a, &periods);
     let p = (chi2_sf(best.0, 2.0) * tests as f64).min(1.0);
     (p < alpha).then(|| Location {
         kind: "spectrum".into(),
@@ -189,25 +183,32 @@ fn spectrum(
     })
 }
 
+/// The period of the grid with the largest periodogram, and that periodogram.
+pub fn best_period(obs: &Observations, dirs: &[Vector3<f64>], z: &[f64], a: usize, periods: &[f64]) -> (f64, f64) {
+    // The grid is uniform in frequency, ascending.
+    let f0 = 1.0 / periods[0];
+    let df = if periods.len() > 1 { 1.0 / periods[1] - f0 } else { 0.0 };
+    let scan = periodogram_scan(obs, dirs, z, a, f0, df, periods.len());
+    scan.iter()
+        .zip(periods)
+        .map(|(&s, &p)| (s, p))
+        .fold((0.0, periods[0]), |best, cur| if cur.0 > best.0 { cur } else { best })
+}
+
+/// Shortest period searched: periodic errors of drives and scales of interest here (ball-screw
+/// leads, encoder interpolation of coarse scales) are millimetres long; the readings of many
+/// lines together sample each axis far more densely than one line does.
+pub const MIN_PERIOD_M: f64 = 2e-3;
+
 /// Candidate periods along axis `a` and the number of independent ones.
 pub fn period_grid(obs: &Observations, geo: &Geometry, dirs: &[Vector3<f64>], a: usize) -> Option<(Vec<f64>, usize)> {
     let [lo, hi] = geo.travel.ranges[a];
     let len = hi - lo;
-    // Typical spacing of consecutive points along the axis, where the beams see the axis.
-    let mut steps: Vec<f64> = Vec::new();
-    for g in &obs.groups {
-        for i in g.start + 1..g.end {
-            if dirs[i][a].abs() > 0.3 {
-                steps.push((obs.x[i][a] - obs.x[i - 1][a]).abs());
-            }
-        }
-    }
-    if steps.len() < 20 {
+    // The axis must be seen: enough readings on lines with a component along it.
+    if (0..obs.len()).filter(|&i| dirs[i][a].abs() > 0.3).count() < 20 {
         return None;
     }
-    steps.sort_by(|x, y| x.total_cmp(y));
-    let spacing = steps[steps.len() / 2].max(1e-6);
-    let (pmin, pmax) = (2.5 * spacing, len / 2.0);
+    let (pmin, pmax) = (MIN_PERIOD_M, len / 2.0);
     if pmin >= pmax {
         return None;
     }
@@ -248,4 +249,71 @@ pub fn periodogram(obs: &Observations, geo: &Geometry, dirs: &[Vector3<f64>], z:
     let inv = [[g[1][1] / det, -g[0][1] / det], [-g[1][0] / det, g[0][0] / det]];
     let _ = geo;
     c[0] * (inv[0][0] * c[0] + inv[0][1] * c[1]) + c[1] * (inv[1][0] * c[0] + inv[1][1] * c[1])
+}
+
+/// [`periodogram`] for a whole grid of frequencies `f0 + k df` (k < n) at once: the sine and
+/// cosine of each reading are advanced by an angle-addition recurrence instead of being evaluated
+/// for every frequency.
+pub fn periodogram_scan(
+    obs: &Observations,
+    dirs: &[Vector3<f64>],
+    z: &[f64],
+    a: usize,
+    f0: f64,
+    df: f64,
+    n: usize,
+) -> Vec<f64> {
+    // Per frequency: G (3 values), c (2 values).
+    let (mut g00, mut g01, mut g11) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut c0, mut c1) = (vec![0.0; n], vec![0.0; n]);
+    // Per frequency, sums over the current group: s, c, s z, c z and the products.
+    let mut acc = vec![[0.0f64; 7]; n];
+    for gr in &obs.groups {
+        for v in acc.iter_mut() {
+            *v = [0.0; 7];
+        }
+        let m = gr.len() as f64;
+        for i in gr.range() {
+            let w = dirs[i][a];
+            if w == 0.0 {
+                continue;
+            }
+            let x = obs.x[i][a];
+            let (mut sn, mut cs) = (2.0 * PI * x * f0).sin_cos();
+            let (ds, dc) = (2.0 * PI * x * df).sin_cos();
+            for v in acc.iter_mut() {
+                let (rs, rc) = (w * sn, w * cs);
+                v[0] += rs;
+                v[1] += rc;
+                v[2] += rs * z[i];
+                v[3] += rc * z[i];
+                v[4] += rs * rs;
+                v[5] += rs * rc;
+                v[6] += rc * rc;
+                let s2 = sn * dc + cs * ds;
+                cs = cs * dc - sn * ds;
+                sn = s2;
+            }
+        }
+        // Centre within the group (its origin is free): subtract the means' contributions.
+        let zm: f64 = gr.range().map(|i| z[i]).sum::<f64>() / m;
+        for k in 0..n {
+            let v = &acc[k];
+            let (ms, mc) = (v[0] / m, v[1] / m);
+            g00[k] += v[4] - m * ms * ms;
+            g01[k] += v[5] - m * ms * mc;
+            g11[k] += v[6] - m * mc * mc;
+            c0[k] += v[2] - m * ms * zm;
+            c1[k] += v[3] - m * mc * zm;
+        }
+    }
+    (0..n)
+        .map(|k| {
+            let det = g00[k] * g11[k] - g01[k] * g01[k];
+            if det <= 1e-300 {
+                return 0.0;
+            }
+            (c0[k] * (g11[k] * c0[k] - g01[k] * c1[k]) + c1[k] * (g00[k] * c1[k] - g01[k] * c0[k])) / det
+        })
+        .collect()
 }

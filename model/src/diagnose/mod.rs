@@ -99,6 +99,24 @@ pub struct Diagnosis {
     pub map_change_rms_m: f64,
     pub map_change_max_m: f64,
     pub statements: Vec<String>,
+    /// Every candidate tested, per selection round (the evidence behind the choices).
+    pub rounds: Vec<Vec<CandidateReport>>,
+}
+
+/// One candidate's test in one round.
+#[derive(Clone, Debug)]
+pub struct CandidateReport {
+    pub id: String,
+    /// Scanned hyper-parameter (period, break position), if any.
+    pub hyper: Option<f64>,
+    pub delta_chi2: f64,
+    pub rank: usize,
+    /// Bonferroni-corrected over all candidates of the round.
+    pub p_value: f64,
+    pub evidence: f64,
+    pub share: f64,
+    pub cv_gain: Option<f64>,
+    pub accepted: bool,
 }
 
 /// Kinds of candidate.
@@ -165,6 +183,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
     let mut selected: Vec<(Family, Box<dyn Effect>)> = Vec::new();
     let mut found: Vec<FoundEffect> = Vec::new();
     let mut current = before.clone();
+    let mut rounds = Vec::new();
     loop {
         if found.len() >= opts.max_effects {
             break;
@@ -179,9 +198,56 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
             e.p_value * total_tests as f64 / e.cand.tests as f64 <= opts.alpha
                 && e.evidence > 0.0
                 && e.share >= opts.min_share
-                && e.cv_gain.is_none_or(|g| g > 0.0)
         };
-        let Some(pos) = evaluated.iter().position(accept) else { break };
+        // Cross-validation across lines for the campaign-wide effects that pass the other
+        // criteria: the model and the effect are fitted on every other line and the effect's
+        // parameters from each half must reduce the chi-square of the other half.
+        let mut folds: Option<(Fit<'_>, Fit<'_>)> = None;
+        let masks: [Vec<bool>; 2] =
+            [(0..obs.groups.len()).map(|g| g % 2 == 0).collect(), (0..obs.groups.len()).map(|g| g % 2 == 1).collect()];
+        let mut chosen = None;
+        for (k, e) in evaluated.iter_mut().enumerate() {
+            if !accept(e) {
+                continue;
+            }
+            if e.cand.family.global() && e.score.rank > 0 {
+                if folds.is_none() {
+                    let fold = |m: &Vec<bool>| {
+                        fit(layout, obs, &SolveOptions { group_mask: Some(m.clone()), ..opts.solve.clone() }, &refs)
+                    };
+                    folds = Some((fold(&masks[0])?, fold(&masks[1])?));
+                }
+                let (fa, fb) = folds.as_ref().unwrap();
+                let sa = fa.score_masked(e.cand.effect.as_ref(), Some(&masks[0]));
+                let sb = fb.score_masked(e.cand.effect.as_ref(), Some(&masks[1]));
+                let gain = sb.gain(&sa.estimate) + sa.gain(&sb.estimate);
+                e.cv_gain = Some(gain);
+                if gain <= 0.0 {
+                    continue;
+                }
+            }
+            chosen = Some(k);
+            break;
+        }
+        drop(folds);
+        rounds.push(
+            evaluated
+                .iter()
+                .enumerate()
+                .map(|(k, e)| CandidateReport {
+                    id: e.cand.effect.id().to_string(),
+                    hyper: e.cand.hyper,
+                    delta_chi2: e.score.delta_chi2,
+                    rank: e.score.rank,
+                    p_value: (e.p_value * total_tests as f64 / e.cand.tests as f64).min(1.0),
+                    evidence: e.evidence,
+                    share: e.share,
+                    cv_gain: e.cv_gain,
+                    accepted: Some(k) == chosen,
+                })
+                .collect(),
+        );
+        let Some(pos) = chosen else { break };
         let best = evaluated.swap_remove(pos);
         let alternatives: Vec<String> = evaluated
             .iter()
@@ -279,6 +345,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         map_change_rms_m,
         map_change_max_m,
         statements,
+        rounds,
     })
 }
 
@@ -333,14 +400,9 @@ fn propose(
             continue;
         }
         if let Some((periods, tests)) = locate::period_grid(obs, geo, dirs, a) {
-            let best = periods
-                .iter()
-                .map(|&p| (locate::periodogram(obs, geo, dirs, &z, a, p), p))
-                .max_by(|x, y| x.0.total_cmp(&y.0));
-            if let Some((_, p)) = best {
-                let p = refine_period(obs, geo, dirs, &z, a, p);
-                push(Family::Periodic(a), Box::new(catalogue::periodic(obs, dirs, a, p)), tests, Some(p), &mut out);
-            }
+            let (_, p) = locate::best_period(obs, dirs, &z, a, &periods);
+            let p = refine_period(obs, geo, dirs, &z, a, p);
+            push(Family::Periodic(a), Box::new(catalogue::periodic(obs, dirs, a, p)), tests, Some(p), &mut out);
         }
     }
     // Beam breaks: the best step position in each line from the residuals alone; the strongest
@@ -425,15 +487,8 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOpt
     };
     let excess = chi2 - dof;
     let share = if excess > 3.0 * (2.0 * dof).sqrt() { score.delta_chi2 / excess } else { 1.0 };
-    let cv_gain = (cand.family.global() && score.rank > 0).then(|| {
-        let mask_a: Vec<bool> = (0..obs.groups.len()).map(|g| g % 2 == 0).collect();
-        let mask_b: Vec<bool> = mask_a.iter().map(|m| !m).collect();
-        let sa = f.score_masked(cand.effect.as_ref(), Some(&mask_a));
-        let sb = f.score_masked(cand.effect.as_ref(), Some(&mask_b));
-        sb.gain(&sa.estimate) + sa.gain(&sb.estimate)
-    });
     let _ = opts;
-    Evaluated { cand, score, p_value, evidence, share, cv_gain }
+    Evaluated { cand, score, p_value, evidence, share, cv_gain: None }
 }
 
 /// Physical parameters and a plain statement for a found effect.
