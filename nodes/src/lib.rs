@@ -10,12 +10,15 @@
 //! - [`commands`]: the subcommands as functions.
 //! - [`report`]: text summaries.
 
+pub mod backend;
 pub mod bag_campaign;
 pub mod campaign_csv;
 pub mod commands;
 pub mod machine;
 pub mod model_file;
+pub mod pairing;
 pub mod report;
+pub mod ros;
 pub mod truth_file;
 
 /// `volcal <version>` for provenance records.
