@@ -88,10 +88,11 @@ pub fn simulate_cmd(
     Ok(())
 }
 
-/// Reads a campaign from CSV (or, once the bag reader exists, MCAP).
+/// Reads a campaign from CSV, or from a bag (a directory with `metadata.yaml`, or an `.mcap`
+/// file) recorded by the node set.
 pub fn load_campaign(path: &Path) -> Result<Campaign> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext == "mcap" {
+    if ext == "mcap" || path.is_dir() {
         return crate::bag_campaign::read(path);
     }
     let r = campaign_csv::read(path)?;
@@ -127,7 +128,7 @@ pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, prove
 pub fn provenance(campaign: &Path, machine: &Path) -> Result<Provenance> {
     Ok(Provenance {
         input: campaign.display().to_string(),
-        input_sha256: model_file::sha256_file(campaign)?,
+        input_sha256: crate::node::solver::input_sha256(campaign)?,
         machine: machine.display().to_string(),
         machine_sha256: model_file::sha256_file(machine)?,
         software: crate::software_version(),

@@ -11,11 +11,17 @@
 //! - [`report`]: text summaries.
 
 pub mod backend;
+pub mod bag;
 pub mod bag_campaign;
 pub mod campaign_csv;
+pub mod centring;
 pub mod commands;
+pub mod convert;
+pub mod launch;
+pub mod launch_cmd;
 pub mod machine;
 pub mod model_file;
+pub mod node;
 pub mod pairing;
 pub mod report;
 pub mod ros;

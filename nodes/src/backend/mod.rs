@@ -120,6 +120,10 @@ pub trait DeflectorBackend {
     ) -> Result<()>;
     /// Current state.
     fn readback(&mut self, now_ns: i64) -> DeflectorReadback;
+    /// When the state is next expected to change by itself (settled); `None` if unknown.
+    fn next_change_ns(&self) -> Option<i64> {
+        None
+    }
     /// Simulated backends: the actual beam once settled (published on `/sim/truth/beam`).
     fn truth_beam(&mut self, _now_ns: i64) -> Option<(Point3<f64>, Vector3<f64>)> {
         None
@@ -155,6 +159,11 @@ pub trait MachineBackend {
     fn move_to(&mut self, cmd: &MotionCommand, now_ns: i64) -> Result<()>;
     /// The state at `now_ns` (for a trigger: the latched coordinates).
     fn state(&mut self, now_ns: i64) -> MachineState;
+    /// When the state is next expected to change by itself (the end of a motion), so that the
+    /// node reports it without delay; `None` if unknown (the node polls).
+    fn next_change_ns(&self) -> Option<i64> {
+        None
+    }
     /// Simulated backends: the actual reflector position at `now_ns` (`/sim/truth/reflector`).
     fn truth(&mut self, _now_ns: i64) -> Option<Truth> {
         None

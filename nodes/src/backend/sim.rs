@@ -319,6 +319,10 @@ impl DeflectorBackend for SimDeflector {
         }
     }
 
+    fn next_change_ns(&self) -> Option<i64> {
+        self.state.map(|s| s.4)
+    }
+
     fn truth_beam(&mut self, now_ns: i64) -> Option<(Point3<f64>, Vector3<f64>)> {
         self.state.filter(|s| now_ns >= s.4).map(|s| (s.3.origin, s.3.direction))
     }
@@ -384,6 +388,10 @@ impl MachineBackend for SimMachine {
             in_position,
             position_id: self.cmd.position_id,
         }
+    }
+
+    fn next_change_ns(&self) -> Option<i64> {
+        Some(self.arrival_ns())
     }
 
     fn truth(&mut self, now_ns: i64) -> Option<Truth> {

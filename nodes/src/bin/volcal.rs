@@ -82,6 +82,29 @@ enum Command {
         #[arg(long, default_value_t = 51)]
         points: usize,
     },
+    /// Start the ROS 2 nodes of a YAML launch description (ROS 2 launch-file subset).
+    #[command(
+        after_help = "Example:\n  volcal launch launch_configs/sim_campaign_short.yaml --bag /tmp/short --domain 42\n  volcal launch launch_configs/replay.yaml --bag /tmp/short\n\nLaunch arguments are given as name:=value. Node output is forwarded with the node name as prefix. Ctrl-C stops all nodes cleanly; so does the end of a node marked on_exit: shutdown (the sequencer, the solver). Exit status 1 if a node failed."
+    )]
+    Launch {
+        /// Launch file (YAML).
+        file: PathBuf,
+        /// Value of the launch argument `bag` (the bag to record or replay).
+        #[arg(long)]
+        bag: Option<PathBuf>,
+        /// ROS_DOMAIN_ID for the nodes.
+        #[arg(long)]
+        domain: Option<u16>,
+        /// Launch arguments, name:=value.
+        #[arg(value_name = "NAME:=VALUE")]
+        args: Vec<String>,
+    },
+    /// Inspect a bag: messages per topic, and what was recovered from an unclosed one.
+    #[command(after_help = "Example:\n  volcal bag info bags/sim_short")]
+    Bag {
+        #[command(subcommand)]
+        command: BagCommand,
+    },
     /// Run the whole offline chain on the built-in example and compare with the truth.
     #[command(after_help = "Example:\n  volcal demo")]
     Demo {
@@ -91,6 +114,12 @@ enum Command {
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
+}
+
+#[derive(Subcommand)]
+enum BagCommand {
+    /// Messages per topic (read from the MCAP data, not from metadata.yaml).
+    Info { bag: PathBuf },
 }
 
 fn run() -> anyhow::Result<ExitCode> {
@@ -119,6 +148,10 @@ fn run() -> anyhow::Result<ExitCode> {
             print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
         }
         Command::Demo { workdir, seed } => commands::demo_cmd(workdir.as_deref(), seed)?,
+        Command::Launch { file, bag, domain, args } => {
+            return volcal_nodes::launch_cmd::launch_cmd(&file, bag.as_deref(), domain, &args);
+        }
+        Command::Bag { command: BagCommand::Info { bag } } => print!("{}", volcal_nodes::launch_cmd::bag_info(&bag)?),
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -111,9 +111,9 @@ impl NodeArgs {
         self.get(name)?.ok_or_else(|| anyhow!("parameter {name} is required (-p {name}:=...)"))
     }
 
-    /// A path parameter.
+    /// A path parameter (an empty value counts as absent).
     pub fn path(&self, name: &str) -> Result<Option<PathBuf>> {
-        Ok(self.get::<String>(name)?.map(PathBuf::from))
+        Ok(self.get::<String>(name)?.filter(|s| !s.is_empty()).map(PathBuf::from))
     }
 
     /// Parameters given but never read (typos, or parameters of another node).

@@ -73,9 +73,13 @@ pub struct RosNode {
 impl RosNode {
     /// Creates the node from its arguments and the ROS 2 environment.
     pub fn new(args: NodeArgs, default_name: &str) -> Result<RosNode> {
+        RosNode::with_config(args, default_name, DdsConfig::from_env()?)
+    }
+
+    /// Creates the node on an explicit domain (tests, benchmarks, the demo).
+    pub fn with_config(args: NodeArgs, default_name: &str, dds: DdsConfig) -> Result<RosNode> {
         let name = args.name.clone().unwrap_or_else(|| default_name.to_string());
         let ns = args.namespace.clone().unwrap_or_else(|| "/".to_string());
-        let dds = DdsConfig::from_env()?;
         let context = dds.context()?;
         let node_name = NodeName::new(&ns, &name).map_err(|e| anyhow!("node name {ns}/{name}: {e}"))?;
         let node = context
@@ -168,10 +172,11 @@ impl RosNode {
 }
 
 /// Sets up logging for a node binary: `level: message` on stderr (`volcal launch` adds the node
-/// name), RustDDS internals only from warnings up unless `RUST_LOG` says otherwise.
+/// name), RustDDS internals silenced (they warn about every
+/// locator it does not use on loopback) unless `RUST_LOG` says otherwise.
 pub fn init_logging() {
     let _ = env_logger::Builder::from_env(
-        env_logger::Env::default().default_filter_or("info,rustdds=warn,ros2_client=warn,mio=warn"),
+        env_logger::Env::default().default_filter_or("info,rustdds=off,ros2_client=error,mio=warn"),
     )
     .format(|buf, record| {
         use std::io::Write;

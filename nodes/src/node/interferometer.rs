@@ -1,0 +1,150 @@
+//! The interferometer node: latches a reading on each beam trigger from the sequencer
+//! (`/interferometer/abscissa`, tagged with the trigger id) and, when `rate_hz` > 0, samples
+//! freely for on-the-fly acquisition (batched on `/interferometer/abscissa_batch` when
+//! `batch` > 1).
+//!
+//! Parameters: `backend` (sim), `rate_hz` (0: triggered only), `batch` (1), `latch_timeout_s`
+//! (1.0), and for the sim backend `machine`, `plan`, `seed`, `signal_noise` (0.001).
+
+use super::{check_backend, secs, TICK};
+use crate::backend::sim::{SimInterferometer, SimWorld};
+use crate::backend::{InterferometerBackend, LengthReading, Truth};
+use crate::convert::info_to_msg;
+use crate::pairing::trigger_type;
+use crate::ros::{now_ns, qos, shutdown, RosNode};
+use anyhow::{bail, Result};
+use nalgebra::{Point3, Vector3};
+use volcal_msgs::msg::{Abscissa, AbscissaBatch, BeamState, InterferometerInfo, ReflectorTruth, Trigger};
+use volcal_msgs::std_msgs::msg::Header;
+use volcal_msgs::topics;
+
+pub fn run(node: &mut RosNode) -> Result<()> {
+    check_backend(node)?;
+    let world = SimWorld::from_args(&node.args)?;
+    let noise = node.args.get_or("signal_noise", 0.001)?;
+    let backend = SimInterferometer::new(&world, noise);
+    run_with(node, backend)
+}
+
+/// The node loop over any backend.
+pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) -> Result<()> {
+    let rate_hz: f64 = node.args.get_or("rate_hz", 0.0)?;
+    let batch: usize = node.args.get_or("batch", 1)?;
+    let latch_timeout = (node.args.get_or("latch_timeout_s", 1.0)? * 1e9) as i64;
+    if !(rate_hz >= 0.0 && rate_hz.is_finite()) || batch == 0 {
+        bail!("parameters rate_hz ({rate_hz}) and batch ({batch}) must be non-negative and positive");
+    }
+    node.warn_unused_parameters();
+    let triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
+    let states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
+    let truth = if backend.simulated() {
+        Some((
+            node.subscription::<BeamState>(topics::TRUTH_BEAM, qos::latched())?,
+            node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?,
+        ))
+    } else {
+        None
+    };
+    let out = node.publisher::<Abscissa>(topics::ABSCISSA, qos::data())?;
+    let out_batch =
+        if batch > 1 { Some(node.publisher::<AbscissaBatch>(topics::ABSCISSA_BATCH, qos::data())?) } else { None };
+    let info = node.publisher::<InterferometerInfo>(topics::INTERFEROMETER_INFO, qos::latched())?;
+    info.publish(info_to_msg(&backend.info(), now_ns())).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+
+    let mut ids = (0u32, 0u32);
+    let mut pending: Vec<(Trigger, i64)> = Vec::new();
+    let period_ns = if rate_hz > 0.0 { (1e9 / rate_hz) as i64 } else { 0 };
+    let mut next_sample = now_ns();
+    let mut acc = AbscissaBatch::default();
+    let mut published = 0u64;
+    while !shutdown::requested() {
+        let wait = if period_ns > 0 { secs((next_sample - now_ns()) as f64 * 1e-9).min(TICK) } else { TICK };
+        node.wait(wait);
+        while let Ok(Some((s, _))) = states.take() {
+            ids = (s.station, s.beam);
+            backend.new_beam(s.station, s.beam);
+        }
+        if let Some((beam, refl)) = &truth {
+            while let Ok(Some((b, _))) = beam.take() {
+                backend.truth(&Truth::Beam {
+                    station: b.station,
+                    beam: b.beam,
+                    origin: Point3::from(b.origin_m),
+                    direction: Vector3::from(b.direction),
+                });
+            }
+            while let Ok(Some((r, _))) = refl.take() {
+                backend.truth(&Truth::Reflector {
+                    stamp_ns: r.header.stamp.to_nanos(),
+                    position_id: r.position_id,
+                    settled: r.settled,
+                    actual: Point3::from(r.actual_m),
+                    velocity: Vector3::from(r.velocity_mps),
+                });
+            }
+        }
+        while let Ok(Some((t, _))) = triggers.take() {
+            if t.kind == Trigger::KIND_BEAM
+                && (t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE)
+            {
+                pending.push((t, now_ns()));
+            }
+        }
+        let now = now_ns();
+        let mut keep = Vec::new();
+        for (t, received) in pending.drain(..) {
+            match backend.read(now, Some(t.point), Some(t.position_id))? {
+                Some(r) => {
+                    let msg = abscissa(now, ids, &r, t.trigger_id);
+                    out.publish(msg).map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
+                    published += 1;
+                }
+                None if now - received > latch_timeout => {
+                    log::warn!("trigger {}: no reading possible within the latch timeout; dropped", t.trigger_id)
+                }
+                None => keep.push((t, received)),
+            }
+        }
+        pending = keep;
+        if period_ns > 0 {
+            while next_sample <= now_ns() {
+                if let Some(r) = backend.read(next_sample, None, None)? {
+                    if let Some(pb) = &out_batch {
+                        if acc.abscissa_m.is_empty() {
+                            acc.header = Header::at(next_sample, &format!("deflector/{}", ids.0));
+                            acc.station = ids.0;
+                            acc.beam = ids.1;
+                            acc.sample_period_s = period_ns as f64 * 1e-9;
+                        }
+                        acc.abscissa_m.push(r.value_m);
+                        acc.signal_strength.push(r.signal_strength as f32);
+                        acc.beam_broken.push(r.beam_broken);
+                        if acc.abscissa_m.len() >= batch || (acc.station, acc.beam) != ids {
+                            pb.publish(std::mem::take(&mut acc))
+                                .map_err(|e| anyhow::anyhow!("publish batch: {e:?}"))?;
+                        }
+                    } else {
+                        out.publish(abscissa(next_sample, ids, &r, 0))
+                            .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
+                    }
+                    published += 1;
+                }
+                next_sample += period_ns;
+            }
+        }
+    }
+    log::info!("published {published} readings");
+    Ok(())
+}
+
+fn abscissa(stamp_ns: i64, ids: (u32, u32), r: &LengthReading, trigger_id: u64) -> Abscissa {
+    Abscissa {
+        header: Header::at(stamp_ns, &format!("deflector/{}", ids.0)),
+        station: ids.0,
+        beam: ids.1,
+        abscissa_m: r.value_m,
+        signal_strength: r.signal_strength,
+        beam_broken: r.beam_broken,
+        trigger_id,
+    }
+}

@@ -1,0 +1,120 @@
+//! End to end over DDS on loopback (acceptance 1): a short simulated campaign launched as ROS 2
+//! nodes, recorded to a bag, replayed into the solver node, gives the same model as
+//! `volcal simulate` + `volcal solve` of the same plan, within the noise; the model is served
+//! to a late joiner on `/error_model`.
+
+mod common;
+
+use common::*;
+use nalgebra::Vector3;
+use std::time::{Duration, Instant};
+use volcal::{predict, ErrorModel};
+use volcal_msgs::msg::ErrorModel as ErrorModelMsg;
+use volcal_msgs::topics;
+use volcal_nodes::commands::{compare_with_truth, probe_offsets, sim_config, simulate_cmd, solve_cmd};
+use volcal_nodes::machine::Machine;
+use volcal_nodes::model_file::{self, ModelFile};
+use volcal_nodes::ros::{domain, qos};
+use volcal_sim::Plan;
+
+/// RMS over a grid of the difference between two estimates, and the RMS of its predicted
+/// standard deviation (the two estimates are independent).
+fn model_difference(
+    a: &ErrorModel,
+    ca: &faer::Mat<f64>,
+    b: &ErrorModel,
+    cb: &faer::Mat<f64>,
+    offsets: &[Vector3<f64>],
+) -> (f64, f64) {
+    let (mut d2, mut v2, mut n) = (0.0, 0.0, 0usize);
+    for x in predict::grid(&a.layout.travel, 0.1) {
+        for p in offsets {
+            d2 += (a.error(&x, p) - b.error(&x, p)).norm_squared();
+            v2 += predict::predict(a, ca, &x, p).cov.trace() + predict::predict(b, cb, &x, p).cov.trace();
+            n += 1;
+        }
+    }
+    ((d2 / n as f64).sqrt(), (v2 / n as f64).sqrt())
+}
+
+#[test]
+fn dds_campaign_matches_offline_simulate_and_solve() {
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("node-set-e2e");
+    let bag = dir.join("short");
+    let machine_path = repo().join("launch_configs/machines/demo_cmm.yaml");
+    let plan_path = repo().join("launch_configs/plans/short.yaml");
+
+    // Record.
+    let started = Instant::now();
+    let (st, out) = Launch::start(&launch_config("sim_campaign_short.yaml"), Some(&bag), lease.id, &[])
+        .wait(Duration::from_secs(240));
+    assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 960 acquired points"), "{out}");
+    eprintln!("recorded in {:.1} s", started.elapsed().as_secs_f64());
+
+    // Replay into the solver node; a subscriber joining after the model was published gets it.
+    let model_path = dir.join("model_dds.json");
+    let out_arg = format!("out:={}", model_path.display());
+    let mut replay = Launch::start(&launch_config("replay.yaml"), Some(&bag), lease.id, &[&out_arg, "linger_s:=60"]);
+    replay.wait_for("the solver publishing the model", Duration::from_secs(120), |l| {
+        l.contains("published the model on /error_model")
+    });
+    let mut late = test_node("late_joiner", lease.id);
+    let sub = late.subscription::<ErrorModelMsg>(topics::ERROR_MODEL, qos::latched()).unwrap();
+    let t = Instant::now();
+    let msg = loop {
+        late.wait(Duration::from_millis(50));
+        if let Ok(Some((m, _))) = sub.take() {
+            break m;
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "no model on /error_model for a late joiner");
+    };
+    replay.interrupt();
+    let (st, out) = replay.wait(Duration::from_secs(30));
+    assert!(st.success(), "replay failed:\n{out}");
+    let file_dds = model_file::load(&model_path).unwrap().file;
+    let from_msg: ModelFile = serde_json::from_str(&msg.model_json).unwrap();
+    assert_eq!(from_msg, file_dds, "the published model is the written one");
+    assert_eq!(msg.functions.len(), 18);
+    assert_eq!(msg.covariance_upper.len(), file_dds.covariance.upper.len());
+
+    // The same plan offline.
+    let csv = dir.join("short.csv");
+    let model_off_path = dir.join("model_offline.json");
+    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None).unwrap();
+    let (solved_off, _) = solve_cmd(&csv, &machine_path, &model_off_path).unwrap();
+
+    let dds = model_file::load(&model_path).unwrap();
+    let off = (&solved_off.solution.model, &solved_off.solution.covariance);
+    let machine = Machine::load(&machine_path).unwrap();
+    let plan: Plan = volcal_nodes::commands::load_plan(Some(&plan_path)).unwrap();
+    let truth = sim_config(&machine, plan, 1).machine.truth;
+    let campaign = volcal_nodes::commands::load_campaign(&bag).unwrap();
+    assert_eq!(campaign.readings.len(), 960);
+    let offsets = probe_offsets(&campaign);
+    assert_eq!(offsets.len(), 3);
+    for (name, m, c) in [("DDS chain", &dds.model, &dds.covariance), ("offline", off.0, off.1)] {
+        let cmp = compare_with_truth(m, c, &truth, machine.gauge, &offsets, 0.1);
+        eprintln!(
+            "{name} vs truth: RMS {:.3} um, max {:.3} um, predicted sigma RMS {:.3} um",
+            cmp.rms_m * 1e6,
+            cmp.max_m * 1e6,
+            cmp.predicted_rms_m * 1e6
+        );
+        assert!(
+            cmp.rms_m < 2.0 * cmp.predicted_rms_m,
+            "{name}: error {} vs predicted {}",
+            cmp.rms_m,
+            cmp.predicted_rms_m
+        );
+    }
+    let (d, s) = model_difference(&dds.model, &dds.covariance, off.0, off.1, &offsets);
+    eprintln!("DDS chain vs offline: RMS difference {:.3} um, predicted {:.3} um", d * 1e6, s * 1e6);
+    assert!(d < 2.0 * s, "models differ by {d} m RMS, more than twice the predicted {s} m");
+    assert!(dds.file.identifiability.extra_null_dim == 0, "all 21 functions identified");
+    // Mispaired points would show as residuals far beyond the instruments' noise.
+    let r = dds.file.residuals.as_ref().unwrap();
+    eprintln!("DDS chain residuals: RMS {:.4} um, chi2/dof {:.3}", r.rms_m * 1e6, r.variance_factor);
+    assert!(r.variance_factor < 1.5, "chi2/dof {} of the DDS campaign", r.variance_factor);
+}
