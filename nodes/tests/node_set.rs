@@ -52,6 +52,9 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     assert!(st.success(), "launch failed:\n{out}");
     assert!(out.contains("the recorder confirmed all 960 acquired points"), "{out}");
     eprintln!("recorded in {:.1} s", started.elapsed().as_secs_f64());
+    // A fresh recording also opens in the independent readers (the sample bags are checked by
+    // independent_readers.rs).
+    check_with_independent_readers(std::slice::from_ref(&bag));
 
     // Replay into the solver node; a subscriber joining after the model was published gets it.
     let model_path = dir.join("model_dds.json");

@@ -81,23 +81,35 @@ struct ReflectorHistory {
 impl ReflectorHistory {
     fn push(&mut self, t: &Truth) {
         if let Truth::Reflector { stamp_ns, position_id, settled, actual, velocity } = *t {
-            self.samples.push_back((stamp_ns, position_id, settled, actual, velocity));
-            while self.samples.len() > 256 {
+            // Kept in stamp order (DDS delivers one writer's samples in order; this guards
+            // against anything else).
+            let i = self.samples.partition_point(|s| s.0 <= stamp_ns);
+            self.samples.insert(i, (stamp_ns, position_id, settled, actual, velocity));
+            // A few seconds at the machine's sampling rate: more than any reading waits.
+            while self.samples.len() > 8192 {
                 self.samples.pop_front();
             }
         }
     }
 
-    /// The actual position at rest at the target of `position_id`, or (free-running) at `at_ns`.
+    /// The actual position at rest at the target of `position_id`, or (free-running) at `at_ns`,
+    /// interpolated between the truth samples around it: `None` until the machine has published
+    /// a sample at or after `at_ns` (the simulated instrument never reads the future).
     fn actual(&self, at_ns: i64, position_id: Option<u64>) -> Option<Point3<f64>> {
         match position_id {
             Some(id) => self.samples.iter().rev().find(|s| s.1 == id && s.2).map(|s| s.3),
             None => {
-                let last = self.samples.back()?;
-                // Extrapolate from the latest sample with its velocity (the machine publishes
-                // often; the gap is a few milliseconds).
-                let dt = (at_ns - last.0) as f64 * 1e-9;
-                Some(last.3 + last.4 * dt.clamp(-0.05, 0.05))
+                let i = self.samples.partition_point(|s| s.0 < at_ns);
+                if i == self.samples.len() {
+                    return None;
+                }
+                let s1 = &self.samples[i];
+                if i == 0 || s1.0 == at_ns {
+                    return (s1.0 == at_ns).then_some(s1.3);
+                }
+                let s0 = &self.samples[i - 1];
+                let f = (at_ns - s0.0) as f64 / (s1.0 - s0.0) as f64;
+                Some(s0.3 + (s1.3 - s0.3) * f)
             }
         }
     }

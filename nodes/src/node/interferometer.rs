@@ -31,6 +31,7 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     let rate_hz: f64 = node.args.get_or("rate_hz", 0.0)?;
     let batch: usize = node.args.get_or("batch", 1)?;
     let latch_timeout = (node.args.get_or("latch_timeout_s", 1.0)? * 1e9) as i64;
+    let max_lag_ns = (node.args.get_or("max_lag_s", 0.5)? * 1e9) as i64;
     if !(rate_hz >= 0.0 && rate_hz.is_finite()) || batch == 0 {
         bail!("parameters rate_hz ({rate_hz}) and batch ({batch}) must be non-negative and positive");
     }
@@ -57,6 +58,7 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     let mut next_sample = now_ns();
     let mut acc = AbscissaBatch::default();
     let mut published = 0u64;
+    let mut skipped = 0u64;
     while !shutdown::requested() {
         let wait = if period_ns > 0 { secs((next_sample - now_ns()) as f64 * 1e-9).min(TICK) } else { TICK };
         node.wait(wait);
@@ -108,7 +110,17 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
         pending = keep;
         if period_ns > 0 {
             while next_sample <= now_ns() {
-                if let Some(r) = backend.read(next_sample, None, None)? {
+                let Some(r) = backend.read(next_sample, None, None)? else {
+                    // Not readable yet (the simulated instrument waits for the truth of this
+                    // instant); give up on samples more than `max_lag` old.
+                    if now_ns() - next_sample > max_lag_ns {
+                        skipped += 1;
+                        next_sample += period_ns;
+                        continue;
+                    }
+                    break;
+                };
+                {
                     if let Some(pb) = &out_batch {
                         if acc.abscissa_m.is_empty() {
                             acc.header = Header::at(next_sample, &format!("deflector/{}", ids.0));
@@ -134,6 +146,9 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
         }
     }
     log::info!("published {published} readings");
+    if skipped > 0 {
+        log::warn!("{skipped} free-running samples could not be read within {} s", max_lag_ns as f64 * 1e-9);
+    }
     Ok(())
 }
 

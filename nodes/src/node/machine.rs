@@ -77,20 +77,43 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut next_idle = now_ns();
     let mut next_sample = now_ns();
+    // The simulated instruments interpolate the reflector truth in time: it is published at
+    // `rate_hz` whether or not the machine moves, and at the corners of each motion.
+    let mut next_truth = if simulated { now_ns() } else { i64::MAX };
+    let mut motion_end: Option<i64> = None;
     let mut last: Option<MachineState> = None;
     let mut acc = MachinePositionBatch::default();
-    let flush = |acc: &mut MachinePositionBatch| -> Result<()> {
-        if let Some(pb) = &out_batch {
-            if !acc.x_m.is_empty() {
-                pb.publish(std::mem::take(acc)).map_err(|e| anyhow!("publish batch: {e:?}"))?;
+    // Sends a sample: batched samples and single ones must travel on one topic to stay in
+    // stamp order, so with batching on, a corner sample is a batch of one.
+    let emit = |stamp: i64, s: &MachineState, acc: &mut MachinePositionBatch, single: bool| -> Result<()> {
+        match &out_batch {
+            None => out
+                .publish(position_msg(stamp, s, 0))
+                .map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION)),
+            Some(pb) => {
+                if single && !acc.x_m.is_empty() {
+                    pb.publish(std::mem::take(acc)).map_err(|e| anyhow!("publish batch: {e:?}"))?;
+                }
+                if acc.x_m.is_empty() {
+                    acc.header = Header::at(stamp, "machine");
+                    acc.sample_period_s = moving_ns as f64 * 1e-9;
+                    acc.probe_offset_m = s.probe_offset.into();
+                    acc.position_id = s.position_id;
+                }
+                acc.x_m.push(s.position.x);
+                acc.y_m.push(s.position.y);
+                acc.z_m.push(s.position.z);
+                if single || acc.x_m.len() >= batch {
+                    pb.publish(std::mem::take(acc)).map_err(|e| anyhow!("publish batch: {e:?}"))?;
+                }
+                Ok(())
             }
         }
-        Ok(())
     };
     while !shutdown::requested() {
         let moving = last.is_some_and(|l| !l.in_position);
-        let mut due = if moving { next_sample } else { next_idle };
-        if let Some(t) = backend.next_change_ns().filter(|t| *t > now_ns() - 1_000_000) {
+        let mut due = (if moving { next_sample } else { next_idle }).min(next_truth);
+        if let Some(t) = motion_end.filter(|t| *t > now_ns() - 1_000_000) {
             due = due.min(t);
         }
         node.wait(secs((due - now_ns()) as f64 * 1e-9).min(TICK));
@@ -113,48 +136,53 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                 },
                 now,
             )?;
-            next_sample = now;
+            // The motion starts now: a sample at this corner, then samples at the fixed rate.
+            let s0 = backend.state(now);
+            if simulated {
+                publish_truth(&mut backend, now)?;
+            }
+            emit(now, &s0, &mut acc, true)?;
+            next_sample = now + moving_ns;
+            motion_end = backend.next_change_ns();
+            last = Some(MachineState { in_position: false, ..s0 });
         }
         let now = now_ns();
         let s = backend.state(now);
+        let was_moving = last.is_some_and(|l| !l.in_position);
         let arrived = s.in_position && last.is_none_or(|l| !l.in_position || l.position_id != s.position_id);
-        if !s.in_position {
-            // Samples at the fixed rate, stamped at their sampling instants.
+        // The instant the target was reached (the controller knows it; the sim computes it).
+        let arrival = motion_end.filter(|t| *t <= now).unwrap_or(now);
+        if was_moving {
             if next_sample < now - 100 * moving_ns {
                 next_sample = now;
             }
-            while next_sample <= now {
+            let until = if arrived { arrival - 1 } else { now };
+            while next_sample <= until {
                 let sk = backend.state(next_sample);
-                if out_batch.is_some() {
-                    if acc.x_m.is_empty() {
-                        acc.header = Header::at(next_sample, "machine");
-                        acc.sample_period_s = moving_ns as f64 * 1e-9;
-                        acc.probe_offset_m = sk.probe_offset.into();
-                        acc.position_id = sk.position_id;
-                    }
-                    acc.x_m.push(sk.position.x);
-                    acc.y_m.push(sk.position.y);
-                    acc.z_m.push(sk.position.z);
-                    if acc.x_m.len() >= batch {
-                        flush(&mut acc)?;
-                    }
-                } else {
-                    out.publish(position_msg(next_sample, &sk, 0))
-                        .map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION))?;
-                }
+                emit(next_sample, &sk, &mut acc, false)?;
                 next_sample += moving_ns;
             }
-            publish_truth(&mut backend, now)?;
-            last = Some(s);
-        } else if arrived || now >= next_idle {
-            flush(&mut acc)?;
-            // Truth first, so that the simulated instruments know where the reflector is when
-            // the sequencer reacts to the in-position message.
-            publish_truth(&mut backend, now)?;
-            out.publish(position_msg(now, &s, 0))
-                .map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION))?;
+        }
+        if arrived {
+            // The arrival corner, stamped when it happened; truth first, so that the simulated
+            // instruments know where the reflector is when the sequencer reacts to it.
+            let sa = backend.state(arrival);
+            if simulated {
+                publish_truth(&mut backend, arrival)?;
+            }
+            emit(arrival, &sa, &mut acc, true)?;
+            next_idle = now + idle_ns;
+            last = Some(sa);
+        } else if s.in_position && now >= next_idle {
+            emit(now, &s, &mut acc, true)?;
             next_idle = now + idle_ns;
             last = Some(s);
+        } else if !s.in_position {
+            last = Some(s);
+        }
+        if simulated && now >= next_truth {
+            publish_truth(&mut backend, now)?;
+            next_truth = next_truth.max(now - moving_ns) + moving_ns;
         }
         while let Ok(Some((t, _))) = triggers.take() {
             if t.trigger_type != trigger_type::POINT && t.trigger_type != trigger_type::PROBE {

@@ -132,3 +132,106 @@ pub fn signal(pid: i32, sig: i32) {
         libc::kill(pid, sig);
     }
 }
+
+/// What an independent reader should find in a bag: counts and header-stamp sums per topic,
+/// and checksums of the synchronised pairs, from volcal's own reader.
+pub fn our_tally(bag: &Path) -> serde_json::Value {
+    use volcal_msgs::msg::SyncedPair;
+    use volcal_msgs::std_msgs::msg::Header;
+    use volcal_nodes::ros::cdr;
+    let mut counts = std::collections::BTreeMap::<String, u64>::new();
+    let mut stamps = std::collections::BTreeMap::<String, i128>::new();
+    let (mut l, mut pos, mut n, mut broken) = (Neumaier::default(), Neumaier::default(), 0u64, 0u64);
+    volcal_nodes::bag::Bag::open(bag)
+        .unwrap()
+        .read(|m| {
+            *counts.entry(m.topic.to_string()).or_default() += 1;
+            // Every volcal message starts with a std_msgs/Header.
+            let h: Header = cdr::decode(m.data)?;
+            *stamps.entry(m.topic.to_string()).or_default() += h.stamp.to_nanos() as i128;
+            if m.type_name == "volcal_msgs/msg/SyncedPair" {
+                let p: SyncedPair = m.decode()?;
+                l.add(p.l_m);
+                for v in p.position_m {
+                    pos.add(v);
+                }
+                n += 1;
+                broken += p.beam_broken as u64;
+            }
+            Ok(())
+        })
+        .unwrap();
+    serde_json::json!({
+        "counts": counts,
+        "stamp_sums": stamps.iter().map(|(k, v)| (k.clone(), v.to_string())).collect::<std::collections::BTreeMap<_, _>>(),
+        "pairs": {"n": n, "l_m_sum": l.sum(), "position_sum": pos.sum(), "beam_broken": broken},
+    })
+}
+
+/// Compensated summation (what Python's math.fsum approximates exactly).
+#[derive(Default)]
+pub struct Neumaier {
+    s: f64,
+    c: f64,
+}
+
+impl Neumaier {
+    pub fn add(&mut self, x: f64) {
+        let t = self.s + x;
+        if self.s.abs() >= x.abs() {
+            self.c += (self.s - t) + x;
+        } else {
+            self.c += (x - t) + self.s;
+        }
+        self.s = t;
+    }
+
+    pub fn sum(&self) -> f64 {
+        self.s + self.c
+    }
+}
+
+/// Runs `.ci/checks/read_bags.py` (rosbags and mcap-ros2-support) on the bags and checks that
+/// both readers find what volcal's reader finds. Returns false when the checker venv is absent
+/// (skipped locally; `VOLCAL_REQUIRE_PY` makes that a failure).
+pub fn check_with_independent_readers(bags: &[PathBuf]) -> bool {
+    let Some(py) = volcal_tests::checker_python() else { return false };
+    let out = Command::new(py)
+        .arg(repo().join(".ci/checks/read_bags.py"))
+        .args(bags)
+        .output()
+        .expect("cannot run the Python checker");
+    assert!(out.status.success(), "read_bags.py failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for bag in bags {
+        let ours = our_tally(bag);
+        let key = bag.display().to_string();
+        for reader in ["rosbags", "mcap_ros2"] {
+            let t = &theirs[&key][reader];
+            let counts: std::collections::BTreeMap<String, u64> = serde_json::from_value(t["counts"].clone()).unwrap();
+            let our_counts: std::collections::BTreeMap<String, u64> =
+                serde_json::from_value(ours["counts"].clone()).unwrap();
+            assert_eq!(counts, our_counts, "{key}: {reader} counts per topic");
+            assert_eq!(t["stamp_sums"], ours["stamp_sums"], "{key}: {reader} header stamps");
+            let (a, b) = (&t["pairs"], &ours["pairs"]);
+            assert_eq!(a["n"], b["n"], "{key}: {reader} pairs");
+            assert_eq!(a["beam_broken"], b["beam_broken"], "{key}: {reader} beam_broken flags");
+            for f in ["l_m_sum", "position_sum"] {
+                let (x, y) = (a[f].as_f64().unwrap(), b[f].as_f64().unwrap());
+                assert!((x - y).abs() <= 1e-12 * x.abs().max(1.0), "{key}: {reader} {f}: {x} vs {y}");
+            }
+            eprintln!(
+                "{key}: {reader} decoded {} messages on {} topics, as volcal does",
+                counts.values().sum::<u64>(),
+                counts.len()
+            );
+        }
+        let meta = theirs[&key]["rosbags"]["metadata_count"].as_u64().unwrap();
+        let total: u64 = serde_json::from_value::<std::collections::BTreeMap<String, u64>>(ours["counts"].clone())
+            .unwrap()
+            .values()
+            .sum();
+        assert_eq!(meta, total, "{key}: metadata.yaml message_count");
+    }
+    true
+}
