@@ -2,6 +2,11 @@
 //! nodes, recorded to a bag, replayed into the solver node, gives the same model as
 //! `volcal simulate` + `volcal solve` of the same plan, within the noise; the model is served
 //! to a late joiner on `/error_model`.
+//!
+//! Along the way (acceptance 2 and 3): the fresh bag decodes with `rosbags` and
+//! `mcap-ros2-support`, and a CycloneDDS subscriber (Python `cyclonedds`, types declared from the
+//! `.msg`, ROS 2's DDS names) receives `/interferometer/abscissa` with the same field values as
+//! our recorder.
 
 mod common;
 
@@ -37,6 +42,36 @@ fn model_difference(
     ((d2 / n as f64).sqrt(), (v2 / n as f64).sqrt())
 }
 
+/// Every sample CycloneDDS received equals the message our recorder got for that trigger.
+fn check_cyclone_samples(bag: &std::path::Path, samples: &[serde_json::Value]) {
+    use volcal_msgs::msg::Abscissa;
+    assert!(samples.len() >= 100, "CycloneDDS received only {} samples", samples.len());
+    let mut ours = std::collections::HashMap::new();
+    volcal_nodes::bag::Bag::open(bag)
+        .unwrap()
+        .read(|m| {
+            if m.topic == topics::ABSCISSA {
+                let a: Abscissa = m.decode()?;
+                ours.insert(a.trigger_id, a);
+            }
+            Ok(())
+        })
+        .unwrap();
+    for s in samples {
+        let id = s["trigger_id"].as_u64().unwrap();
+        let a = ours.get(&id).unwrap_or_else(|| panic!("CycloneDDS got trigger {id}, the recorder did not"));
+        assert_eq!(s["sec"].as_i64().unwrap(), a.header.stamp.sec as i64);
+        assert_eq!(s["nanosec"].as_u64().unwrap(), a.header.stamp.nanosec as u64);
+        assert_eq!(s["frame_id"].as_str().unwrap(), a.header.frame_id);
+        assert_eq!(s["station"].as_u64().unwrap(), a.station as u64);
+        assert_eq!(s["beam"].as_u64().unwrap(), a.beam as u64);
+        assert_eq!(s["abscissa_m_bits"].as_u64().unwrap(), a.abscissa_m.to_bits());
+        assert_eq!(s["signal_strength_bits"].as_u64().unwrap(), a.signal_strength.to_bits());
+        assert_eq!(s["beam_broken"].as_bool().unwrap(), a.beam_broken);
+    }
+    eprintln!("CycloneDDS received {} abscissae, all equal to the recorded ones", samples.len());
+}
+
 #[test]
 fn dds_campaign_matches_offline_simulate_and_solve() {
     let lease = domain::lease().unwrap();
@@ -45,7 +80,8 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     let machine_path = repo().join("launch_configs/machines/demo_cmm.yaml");
     let plan_path = repo().join("launch_configs/plans/short.yaml");
 
-    // Record.
+    // Record, with a CycloneDDS subscriber listening.
+    let cyclone = CycloneSubscriber::start(lease.id, 200, 120.0);
     let started = Instant::now();
     let (st, out) = Launch::start(&launch_config("sim_campaign_short.yaml"), Some(&bag), lease.id, &[])
         .wait(Duration::from_secs(240));
@@ -55,6 +91,9 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     // A fresh recording also opens in the independent readers (the sample bags are checked by
     // independent_readers.rs).
     check_with_independent_readers(std::slice::from_ref(&bag));
+    if let Some(c) = cyclone {
+        check_cyclone_samples(&bag, &c.samples());
+    }
 
     // Replay into the solver node; a subscriber joining after the model was published gets it.
     let model_path = dir.join("model_dds.json");

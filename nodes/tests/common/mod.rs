@@ -235,3 +235,52 @@ pub fn check_with_independent_readers(bags: &[PathBuf]) -> bool {
     }
     true
 }
+
+/// A CycloneDDS subscriber (`.ci/checks/cyclone_abscissa.py`) of `/interferometer/abscissa`.
+pub struct CycloneSubscriber {
+    child: Child,
+    lines: Arc<Mutex<Vec<String>>>,
+}
+
+impl CycloneSubscriber {
+    /// Starts it on `domain` and waits until its reader exists; `None` when the checker venv
+    /// is absent (skipped locally).
+    pub fn start(domain: u16, count: usize, timeout_s: f64) -> Option<CycloneSubscriber> {
+        let py = volcal_tests::checker_python()?;
+        let mut child = Command::new(py)
+            .arg(repo().join(".ci/checks/cyclone_abscissa.py"))
+            .args([domain.to_string(), count.to_string(), timeout_s.to_string()])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("cannot start the CycloneDDS subscriber");
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let l = lines.clone();
+        let out = child.stdout.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                l.lock().unwrap().push(line);
+            }
+        });
+        let start = Instant::now();
+        while !lines.lock().unwrap().iter().any(|l| l.contains("\"ready\"")) {
+            assert!(start.elapsed() < Duration::from_secs(30), "the CycloneDDS subscriber did not start");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Some(CycloneSubscriber { child, lines })
+    }
+
+    /// Waits for it to finish and returns the samples it received.
+    pub fn samples(mut self) -> Vec<serde_json::Value> {
+        let st = self.child.wait().unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(st.success(), "the CycloneDDS subscriber failed");
+        self.lines
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|v| v.get("trigger_id").is_some())
+            .collect()
+    }
+}
