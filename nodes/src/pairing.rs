@@ -306,21 +306,25 @@ impl Pairer {
         self.expire();
     }
 
-    /// Machine coordinates (latched by a trigger, or sampled while moving).
+    /// Machine coordinates (latched by a trigger, or sampled while moving). Latched ones are
+    /// for trigger pairing only: they may travel on another topic than the sampled track and
+    /// arrive out of order with it, so they do not enter the interpolation track.
     pub fn position(&mut self, p: PositionEvent, out: &mut Vec<Pair>) {
         self.see(p.stamp_ns);
-        let seen = match self.track.get(&p.stamp_ns) {
-            Some(old) => {
-                if old.x != p.x {
-                    self.stats.conflicts += 1;
+        let seen = p.trigger_id == 0
+            && match self.track.get(&p.stamp_ns) {
+                Some(old) => {
+                    if old.x != p.x {
+                        self.stats.conflicts += 1;
+                    }
+                    true
                 }
-                true
-            }
-            None => {
-                self.track.insert(p.stamp_ns, p);
-                false
-            }
-        };
+                None => {
+                    self.track.insert(p.stamp_ns, p);
+                    false
+                }
+            };
+        // (`seen` is false for latched positions, which are not tracked.)
         if p.trigger_id != 0 {
             if self.probes.contains(&p.trigger_id) {
                 return;

@@ -1,8 +1,10 @@
 //! The machine node: executes motion commands from `/machine/command` and publishes the
 //! indicated coordinates on `/machine/position`: at `rate_hz` while moving, at `idle_rate_hz`
 //! at rest, once on reaching each target (`in_position`), and latched on each trigger
-//! (`trigger_id`). With `batch` > 1, the samples while moving go out batched on
-//! `/machine/position_batch` instead (for rates above about 1 kHz). The sim backend publishes
+//! (`trigger_id`). With `batch` > 1, the samples go out batched on `/machine/position_batch`
+//! instead (for rates above about 1 kHz; arrivals as a batch of one with `in_position`), so
+//! that they stay in stamp order on one topic; latched coordinates stay on
+//! `/machine/position`. The sim backend publishes
 //! the actual reflector position on `/sim/truth/reflector` alongside.
 //!
 //! Parameters: `backend` (sim), `rate_hz` (100), `idle_rate_hz` (2), `batch` (1), and for the
@@ -104,6 +106,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                 acc.y_m.push(s.position.y);
                 acc.z_m.push(s.position.z);
                 if single || acc.x_m.len() >= batch {
+                    acc.in_position = s.in_position;
                     pb.publish(std::mem::take(acc)).map_err(|e| anyhow!("publish batch: {e:?}"))?;
                 }
                 Ok(())
@@ -141,7 +144,10 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             if simulated {
                 publish_truth(&mut backend, now)?;
             }
-            emit(now, &s0, &mut acc, true)?;
+            if !s0.in_position {
+                // (A motion of zero length has only its arrival corner.)
+                emit(now, &s0, &mut acc, true)?;
+            }
             next_sample = now + moving_ns;
             motion_end = backend.next_change_ns();
             last = Some(MachineState { in_position: false, ..s0 });

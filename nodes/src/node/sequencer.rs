@@ -36,8 +36,8 @@ use ros2_client::{Publisher, Subscription};
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 use volcal_msgs::msg::{
-    Abscissa, BeamCommand, BeamState, MachineCommand, MachinePosition, SequencerStatus, SyncedPair, TracerRange,
-    Trigger,
+    Abscissa, BeamCommand, BeamState, MachineCommand, MachinePosition, MachinePositionBatch, SequencerStatus,
+    SyncedPair, TracerRange, Trigger,
 };
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
@@ -72,6 +72,7 @@ struct Link<'a> {
     status: Publisher<SequencerStatus>,
     states: Subscription<BeamState>,
     positions: Subscription<MachinePosition>,
+    position_batches: Subscription<MachinePositionBatch>,
     abscissae: Subscription<Abscissa>,
     ranges: Subscription<TracerRange>,
     pairs: Subscription<SyncedPair>,
@@ -100,6 +101,7 @@ impl<'a> Link<'a> {
             status: node.publisher(topics::SEQUENCER_STATUS, qos::latched())?,
             states: node.subscription(topics::DEFLECTOR_STATE, qos::latched())?,
             positions: node.subscription(topics::MACHINE_POSITION, qos::data())?,
+            position_batches: node.subscription(topics::MACHINE_POSITION_BATCH, qos::data())?,
             abscissae: node.subscription(topics::ABSCISSA, qos::data())?,
             ranges: node.subscription(topics::TRACER_RANGE, qos::data())?,
             pairs: node.subscription(topics::PAIRS, qos::data())?,
@@ -138,6 +140,13 @@ impl<'a> Link<'a> {
                 self.latched_positions.insert(p.trigger_id, x);
             } else if p.in_position {
                 self.reached = Some((p.position_id, x));
+            }
+        }
+        while let Ok(Some((b, _))) = self.position_batches.take() {
+            if b.in_position {
+                if let (Some(x), Some(y), Some(z)) = (b.x_m.last(), b.y_m.last(), b.z_m.last()) {
+                    self.reached = Some((b.position_id, Point3::new(*x, *y, *z)));
+                }
             }
         }
         while let Ok(Some((a, _))) = self.abscissae.take() {
