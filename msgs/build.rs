@@ -302,6 +302,8 @@ fn main() {
             writeln!(out, "impl crate::RosMessage for {} {{", def.name).unwrap();
             writeln!(out, "    const PACKAGE: &'static str = {:?};", def.package).unwrap();
             writeln!(out, "    const NAME: &'static str = {:?};", def.name).unwrap();
+            writeln!(out, "    const TYPE_NAME: &'static str = {:?};", format!("{}/msg/{}", def.package, def.name))
+                .unwrap();
             writeln!(out, "    const DEFINITION: &'static str = {:?};", def.text).unwrap();
             writeln!(out, "    const SCHEMA: &'static str = {:?};", schema_text(key, &all)).unwrap();
             writeln!(out, "}}\n").unwrap();

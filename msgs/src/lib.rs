@@ -32,14 +32,16 @@ pub trait RosMessage:
     const PACKAGE: &'static str;
     /// Type name within the package, e.g. `Abscissa`.
     const NAME: &'static str;
+    /// `package/msg/Type`, the name ROS 2 tools and MCAP schemas use.
+    const TYPE_NAME: &'static str;
     /// The `.msg` file, verbatim.
     const DEFINITION: &'static str;
     /// The MCAP `ros2msg` schema: [`Self::DEFINITION`] with its dependencies appended.
     const SCHEMA: &'static str;
 
-    /// `package/msg/Type`, the name ROS 2 tools and MCAP schemas use.
+    /// [`Self::TYPE_NAME`] as a `String`.
     fn type_name() -> String {
-        format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
+        Self::TYPE_NAME.to_string()
     }
 
     /// The DDS type name, `package::msg::dds_::Type_`.
@@ -132,6 +134,7 @@ mod tests {
     #[test]
     fn names_follow_ros2() {
         assert_eq!(Abscissa::type_name(), "volcal_msgs/msg/Abscissa");
+        assert_eq!(Abscissa::TYPE_NAME, format!("{}/msg/{}", Abscissa::PACKAGE, Abscissa::NAME));
         assert_eq!(Abscissa::dds_type_name(), "volcal_msgs::msg::dds_::Abscissa_");
         assert_eq!(dds_topic_name(topics::ABSCISSA), "rt/interferometer/abscissa");
         assert_eq!(Header::type_name(), "std_msgs/msg/Header");

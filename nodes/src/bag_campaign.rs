@@ -24,8 +24,8 @@ pub fn read_bag(path: &Path) -> Result<BagCampaign> {
     let bag = Bag::open(path)?;
     let mut pairs: Vec<(i64, SyncedPair, usize)> = Vec::new();
     let mut info: Option<InterferometerInfo> = None;
-    let pair_type = SyncedPair::type_name();
-    let info_type = InterferometerInfo::type_name();
+    let pair_type = SyncedPair::TYPE_NAME;
+    let info_type = InterferometerInfo::TYPE_NAME;
     let summary = bag.read(|m| {
         if m.topic.starts_with(topics::TRUTH_PREFIX) {
             return Ok(());

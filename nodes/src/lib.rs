@@ -13,6 +13,7 @@
 pub mod backend;
 pub mod bag;
 pub mod bag_campaign;
+pub mod bench;
 pub mod campaign_csv;
 pub mod centring;
 pub mod commands;

@@ -26,7 +26,7 @@ pub struct MessageRef<'a> {
 impl MessageRef<'_> {
     /// Decodes the payload as `M`, checking the type name.
     pub fn decode<M: RosMessage>(&self) -> Result<M> {
-        if self.type_name != M::type_name() {
+        if self.type_name != M::TYPE_NAME {
             bail!("message #{} on {}: type {} is not {}", self.index, self.topic, self.type_name, M::type_name());
         }
         cdr::decode(self.data).map_err(|e| anyhow!("message #{} on {}: {e}", self.index, self.topic))
@@ -132,7 +132,8 @@ impl Bag {
             let closed = buf.ends_with(mcap::MAGIC) && mcap::read::footer(&buf).is_ok();
             let mut stream = mcap::read::RawMessageStream::new_with_options(&buf, opts)
                 .map_err(|e| anyhow!("{}: {e}", file.display()))?;
-            let mut types: BTreeMap<u16, (String, String)> = BTreeMap::new();
+            // Per channel id: topic, type, messages read (no string lookups per message).
+            let mut channels: Vec<Option<(String, String, u64)>> = Vec::new();
             while let Some(item) = stream.next() {
                 let m = match item {
                     Ok(m) => m,
@@ -142,15 +143,18 @@ impl Bag {
                     }
                     Err(e) => bail!("{}: damaged after {} messages: {e}", file.display(), s.messages),
                 };
-                let id = m.header.channel_id;
-                if !types.contains_key(&id) {
+                let id = m.header.channel_id as usize;
+                if channels.len() <= id {
+                    channels.resize(id + 1, None);
+                }
+                if channels[id].is_none() {
                     let ch = stream
-                        .get_channel(id)
+                        .get_channel(id as u16)
                         .ok_or_else(|| anyhow!("{}: message on unknown channel {id}", file.display()))?;
                     let ty = ch.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-                    types.insert(id, (ch.topic.clone(), ty));
+                    channels[id] = Some((ch.topic.clone(), ty, 0));
                 }
-                let (topic, ty) = &types[&id];
+                let (topic, ty, count) = channels[id].as_mut().unwrap();
                 let log_ns = m.header.log_time as i64;
                 let msg = MessageRef {
                     topic,
@@ -161,13 +165,16 @@ impl Bag {
                     index: s.messages,
                 };
                 f(&msg)?;
+                *count += 1;
                 s.messages += 1;
                 s.first_ns = Some(s.first_ns.map_or(log_ns, |v| v.min(log_ns)));
                 s.last_ns = Some(s.last_ns.map_or(log_ns, |v| v.max(log_ns)));
-                match s.per_topic.get_mut(topic) {
-                    Some(c) => c.count += 1,
+            }
+            for (topic, ty, count) in channels.into_iter().flatten() {
+                match s.per_topic.get_mut(&topic) {
+                    Some(c) => c.count += count,
                     None => {
-                        s.per_topic.insert(topic.clone(), TopicCount { type_name: ty.clone(), count: 1 });
+                        s.per_topic.insert(topic, TopicCount { type_name: ty, count });
                     }
                 }
             }

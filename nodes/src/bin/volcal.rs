@@ -105,6 +105,14 @@ enum Command {
         #[command(subcommand)]
         command: BagCommand,
     },
+    /// Throughput benchmarks of the recording chain (figures in README).
+    #[command(
+        after_help = "Examples:\n  volcal bench recorder --rate 1000 --duration 60\n  volcal bench recorder --rate 10000 --duration 60 --batch 100\n  volcal bench replay /tmp/volcal-bench-recorder-1234"
+    )]
+    Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
+    },
     /// Run the whole offline chain on the built-in example and compare with the truth.
     #[command(after_help = "Example:\n  volcal demo")]
     Demo {
@@ -114,6 +122,29 @@ enum Command {
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Publish an on-the-fly acquisition to the recorder node and count the pairs it records.
+    Recorder {
+        /// Sampling rate of the interferometer and the machine, Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        #[arg(long, default_value_t = 60.0)]
+        duration: f64,
+        /// Samples per message (1: one message per sample; more: the batched message types).
+        #[arg(long, default_value_t = 1)]
+        batch: usize,
+        /// Keep the bag here (default: a temporary directory, printed).
+        #[arg(long)]
+        bag: Option<PathBuf>,
+        /// Do not publish the pairs on /campaign/pairs (bag only).
+        #[arg(long)]
+        no_publish_pairs: bool,
+    },
+    /// Read and decode every message of a bag; messages per second.
+    Replay { bag: PathBuf },
 }
 
 #[derive(Subcommand)]
@@ -150,6 +181,23 @@ fn run() -> anyhow::Result<ExitCode> {
         Command::Demo { workdir, seed } => commands::demo_cmd(workdir.as_deref(), seed)?,
         Command::Launch { file, bag, domain, args } => {
             return volcal_nodes::launch_cmd::launch_cmd(&file, bag.as_deref(), domain, &args);
+        }
+        Command::Bench { command: BenchCommand::Recorder { rate, duration, batch, bag, no_publish_pairs } } => {
+            let b = volcal_nodes::bench::RecorderBench {
+                rate_hz: rate,
+                duration_s: duration,
+                batch,
+                bag,
+                publish_pairs: !no_publish_pairs,
+            };
+            let r = volcal_nodes::bench::recorder(&b)?;
+            println!("{}", r.describe(&b));
+            if r.loss() != 0 {
+                return Ok(ExitCode::from(2));
+            }
+        }
+        Command::Bench { command: BenchCommand::Replay { bag } } => {
+            println!("{}", volcal_nodes::bench::replay(&bag)?.describe(&bag))
         }
         Command::Bag { command: BagCommand::Info { bag } } => print!("{}", volcal_nodes::launch_cmd::bag_info(&bag)?),
     }

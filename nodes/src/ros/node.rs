@@ -97,6 +97,11 @@ impl RosNode {
         })
     }
 
+    /// The underlying `ros2-client` node.
+    pub fn ros_node(&self) -> &Node {
+        &self.node
+    }
+
     /// The topic name after this node's remaps.
     pub fn resolve(&self, topic: &str) -> String {
         self.args.remap(topic)
