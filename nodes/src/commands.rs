@@ -453,7 +453,8 @@ pub fn compare_with_truth(
 }
 
 /// `volcal demo`: simulate the patent's example campaign on the built-in machine, solve it,
-/// print the report and the comparison with the simulation truth.
+/// print the report and the comparison with the simulation truth; then run the same campaign
+/// through the ROS 2 node set ([`crate::demo_chain`]).
 pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
     let dir = match workdir {
         Some(d) => d.to_path_buf(),
@@ -480,6 +481,8 @@ pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         c.max_m * 1e6,
         c.predicted_rms_m * 1e6
     );
+    // The same campaign through the ROS 2 node set (launch, record, replay, solve).
+    crate::demo_chain::run(&dir, seed, &machine_path, &solved, &tm, &offs)?;
     Ok(())
 }
 

@@ -329,22 +329,37 @@ fn say(quiet: bool, msg: &str) {
     }
 }
 
-fn spawn(spec: &NodeSpec, dir: &Path, env: &BTreeMap<String, String>) -> Result<Child> {
+/// The command that runs a node: its binary next to `volcal`, or else `volcal node EXEC` (the
+/// `volcal` binary contains every node, so `cargo run -- launch ...` works without building
+/// the node binaries).
+fn node_command(spec: &NodeSpec, dir: &Path) -> Result<Command> {
     let exe = dir.join(&spec.exec);
-    if !exe.exists() {
-        bail!(
+    if exe.exists() {
+        return Ok(Command::new(exe));
+    }
+    let own = std::env::current_exe().ok().filter(|e| e.file_stem().is_some_and(|s| s == "volcal"));
+    match (own, crate::node::by_name(&spec.exec)) {
+        (Some(volcal), Some(_)) => {
+            let mut c = Command::new(volcal);
+            c.arg("node").arg(&spec.exec);
+            Ok(c)
+        }
+        _ => bail!(
             "node {}: executable {} not found (build the node binaries: cargo build -p volcal_nodes --bins; or set VOLCAL_NODE_DIR)",
             spec.name,
             exe.display()
-        );
+        ),
     }
-    let mut cmd = Command::new(&exe);
+}
+
+fn spawn(spec: &NodeSpec, dir: &Path, env: &BTreeMap<String, String>) -> Result<Child> {
+    let mut cmd = node_command(spec, dir)?;
     cmd.args(NodeArgs::to_command_line(&spec.name, &spec.params, &spec.remaps))
         .envs(env)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    let mut child = cmd.spawn().with_context(|| format!("cannot start node {} ({})", spec.name, exe.display()))?;
+    let mut child = cmd.spawn().with_context(|| format!("cannot start node {} ({})", spec.name, spec.exec))?;
     for stream in [
         child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
         child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
@@ -464,7 +479,9 @@ pub fn run(d: &LaunchDescription, opts: &LaunchOptions) -> Result<LaunchOutcome>
             }
         }
         if begin_stop && stopping.is_none() {
-            say(opts.quiet, "stopping the other nodes");
+            if nodes.iter().any(|n| n.child.is_some()) {
+                say(opts.quiet, "stopping the other nodes");
+            }
             stopping = Some(Instant::now());
             for n in &nodes {
                 if let Some(c) = &n.child {

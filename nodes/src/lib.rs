@@ -18,6 +18,7 @@ pub mod campaign_csv;
 pub mod centring;
 pub mod commands;
 pub mod convert;
+pub mod demo_chain;
 pub mod launch;
 pub mod launch_cmd;
 pub mod machine;

@@ -99,6 +99,19 @@ enum Command {
         #[arg(value_name = "NAME:=VALUE")]
         args: Vec<String>,
     },
+    /// Run one ROS 2 node of the node set (what its own binary, e.g. volcal_recorder, does).
+    #[command(
+        hide = true,
+        after_help = "Example:\n  volcal node recorder --ros-args -p bag:=/tmp/bag",
+        disable_help_flag = true
+    )]
+    Node {
+        /// Node (interferometer, tracer, deflector, machine, environment, sequencer, recorder, solver).
+        name: String,
+        /// Node arguments: --ros-args -p name:=value -r from:=to ...
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// Inspect a bag: messages per topic, and what was recovered from an unclosed one.
     #[command(after_help = "Example:\n  volcal bag info bags/sim_short")]
     Bag {
@@ -198,6 +211,11 @@ fn run() -> anyhow::Result<ExitCode> {
         }
         Command::Bench { command: BenchCommand::Replay { bag } } => {
             println!("{}", volcal_nodes::bench::replay(&bag)?.describe(&bag))
+        }
+        Command::Node { name, args } => {
+            let (default_name, body) = volcal_nodes::node::by_name(&name)
+                .ok_or_else(|| anyhow::anyhow!("no node {name:?} (expected interferometer, tracer, deflector, machine, environment, sequencer, recorder or solver)"))?;
+            return Ok(volcal_nodes::node::run_with_args(default_name, body, args));
         }
         Command::Bag { command: BagCommand::Info { bag } } => print!("{}", volcal_nodes::launch_cmd::bag_info(&bag)?),
     }

@@ -45,7 +45,7 @@ pub fn run_with<B: DeflectorBackend>(node: &mut RosNode, mut backend: B, simulat
                 continue;
             }
             backend.command(Point3::from(c.device_position_m), c.azimuth_rad, c.elevation_rad, now_ns())?;
-            log::info!(
+            log::debug!(
                 "station {} beam {}: azimuth {:.4} rad, elevation {:.4} rad",
                 c.station,
                 c.beam,

@@ -29,12 +29,38 @@ use crate::ros::{shutdown, NodeArgs, RosNode};
 use anyhow::{bail, Result};
 use std::process::ExitCode;
 
+/// A node's entry point.
+pub type NodeMain = fn(&mut RosNode) -> Result<()>;
+
+/// The nodes by executable name (`volcal_interferometer`) or node name (`interferometer`):
+/// `(default node name, entry point)`. `volcal node NAME` runs them from the `volcal` binary,
+/// which `volcal launch` falls back to when the node binaries were not built.
+pub fn by_name(name: &str) -> Option<(&'static str, NodeMain)> {
+    let table: [(&'static str, NodeMain); 8] = [
+        ("interferometer", interferometer::run),
+        ("tracer", tracer::run),
+        ("deflector", deflector::run),
+        ("machine", machine::run),
+        ("environment", environment::run),
+        ("sequencer", sequencer::run),
+        ("recorder", recorder::run),
+        ("solver", solver::run),
+    ];
+    let short = name.strip_prefix("volcal_").unwrap_or(name);
+    table.into_iter().find(|(n, _)| *n == short)
+}
+
+/// Runs a node with the process arguments (a node binary's `main`).
+pub fn run(default_name: &str, body: NodeMain) -> ExitCode {
+    run_with_args(default_name, body, std::env::args().skip(1).collect())
+}
+
 /// Runs a node: logging, signal handling, arguments, the node itself; errors end the process
 /// with a message and exit status 1.
-pub fn run(default_name: &str, body: fn(&mut RosNode) -> Result<()>) -> ExitCode {
+pub fn run_with_args(default_name: &str, body: NodeMain, args: Vec<String>) -> ExitCode {
     init_logging();
     shutdown::install();
-    let r = NodeArgs::from_env().and_then(|a| RosNode::new(a, default_name)).and_then(|mut n| {
+    let r = NodeArgs::parse(&args).and_then(|a| RosNode::new(a, default_name)).and_then(|mut n| {
         log::info!(
             "node {} on ROS_DOMAIN_ID {}{}",
             n.name,

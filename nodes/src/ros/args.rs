@@ -151,6 +151,10 @@ fn split_assign(s: &str) -> Result<(&str, &str)> {
 }
 
 fn yaml_scalar(s: &str) -> serde_yaml::Value {
+    if s.is_empty() {
+        // `-p plan:=` is an empty string (ROS 2 reads it so too), not YAML's null.
+        return serde_yaml::Value::String(String::new());
+    }
     serde_yaml::from_str(s).unwrap_or_else(|_| serde_yaml::Value::String(s.to_string()))
 }
 
@@ -212,6 +216,8 @@ mod tests {
         assert_eq!(a.remap("/machine/position"), "/cmm/position");
         assert_eq!(a.remap("/other"), "/other");
         assert_eq!(a.unused(), vec!["typo".to_string()]);
+        let e = NodeArgs::parse(&s(&["--ros-args", "-p", "plan:="])).unwrap();
+        assert_eq!(e.path("plan").unwrap(), None);
         let e = a.get::<f64>("machine").unwrap_err();
         assert!(format!("{e}").contains("parameter machine"), "{e}");
         assert!(NodeArgs::parse(&s(&["-p", "x:=1"])).is_err());
