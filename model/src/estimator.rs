@@ -21,7 +21,8 @@ use crate::beam::{fit_line, orient_with_readings};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::gauge::{self, Gauge, GAUGE_DIM};
 use crate::identify::{self, Identifiability};
-use crate::model::{ErrorModel, ModelLayout, Sensitivity};
+use crate::kinematics::AxisFrame;
+use crate::model::{ErrorModel, ModelLayout};
 use crate::normal;
 use crate::nullspace::NullSpace;
 use crate::range::multilaterate;
@@ -80,7 +81,8 @@ pub struct SolveOptions {
     pub gauge: Gauge,
     pub noise: NoiseModel,
     pub max_iterations: usize,
-    /// Convergence: largest parameter step, in units of its own standard uncertainty.
+    /// Convergence: largest parameter step, in units of its conditional standard uncertainty
+    /// (the solve also stops when steps stagnate below 1e-3 of it: the floating-point floor).
     pub tolerance: f64,
     pub covariance_scaling: CovarianceScaling,
     /// Eigenvalue ratio below which a direction counts as unidentifiable.
@@ -95,7 +97,7 @@ impl Default for SolveOptions {
             gauge: Gauge::Patent,
             noise: NoiseModel::default(),
             max_iterations: 50,
-            tolerance: 1e-4,
+            tolerance: 1e-5,
             covariance_scaling: CovarianceScaling::Birge,
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
@@ -224,14 +226,18 @@ struct State {
     dirs: Vec<Vector3<f64>>,
     /// Actual reflector position of every reading at `d` (exact chain).
     actual: Vec<Point3<f64>>,
+    /// Per reading and axis, what the exact Jacobian needs.
+    frames: Vec<[AxisFrame; 3]>,
 }
 
 /// Normal equations of one linearisation.
 struct Normal {
-    /// n x n, column-major, full symmetric.
+    /// n x n, full symmetric; empty for a gradient-only evaluation.
     n: Mat<f64>,
     b: Vec<f64>,
     cost: f64,
+    /// Centred residual of every reading and the origin of every group, at this state.
+    res: Residuals,
 }
 
 /// Everything that stays fixed during a solve.
@@ -246,18 +252,18 @@ struct Problem<'a> {
     /// Beam groups sharing a direction (same station and beam id): index of the first.
     dir_owner: Vec<usize>,
     sigma: Vec<f64>,
-    sens: Vec<Sensitivity>,
     /// Per-axis basis spans of every reading, when all six functions of each axis share one
     /// representation (the usual case): enables the tiled normal-matrix kernel.
     structure: Option<Structure>,
+    /// Reference energy of each model column (see `reference_energy`).
+    ref_energy: Vec<f64>,
 }
 
-/// Per reading and axis: first coefficient, basis values and lever arm.
+/// Per reading and axis: first coefficient and basis values.
 struct Structure {
     k: [usize; 3],
     first: Vec<[usize; 3]>,
     bvals: Vec<f64>,
-    lever: Vec<[Vector3<f64>; 3]>,
 }
 
 impl Structure {
@@ -276,7 +282,6 @@ impl Structure {
         let kt: usize = k.iter().sum();
         let mut first = Vec::with_capacity(obs.len());
         let mut bvals = Vec::with_capacity(obs.len() * kt);
-        let mut lever = Vec::with_capacity(obs.len());
         let mut buf = Vec::new();
         for i in 0..obs.len() {
             let mut fi = [0; 3];
@@ -288,9 +293,8 @@ impl Structure {
                 bvals.extend(buf.iter().map(|&(_, v)| v));
             }
             first.push(fi);
-            lever.push(Axis::ALL.map(|a| layout.topology.lever_arm(a, &obs.x[i], &obs.p[i])));
         }
-        Some(Structure { k, first, bvals, lever })
+        Some(Structure { k, first, bvals })
     }
 
     fn b(&self, i: usize, a: usize) -> &[f64] {
@@ -335,12 +339,6 @@ pub fn solve(
         })
         .collect();
     let structure = Structure::new(layout, obs);
-    // Generic sparse sensitivities, only needed when some axis mixes representations.
-    let sens: Vec<Sensitivity> = if structure.is_some() {
-        Vec::new()
-    } else {
-        (0..obs.len()).map(|i| layout.sensitivity(&obs.x[i], &obs.p[i])).collect()
-    };
 
     let mut warnings = Vec::new();
     // Initial state: zero errors, closed-form stations.
@@ -364,26 +362,63 @@ pub fn solve(
     let sigma: Vec<f64> = (0..obs.len())
         .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
         .collect();
-    let prob =
-        Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, sens, structure };
-    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new() };
+    let prob = Problem {
+        layout,
+        gauge: opts.gauge,
+        obs,
+        dims,
+        effects,
+        group_station,
+        dir_owner,
+        ref_energy: reference_energy(layout, obs, &sigma),
+        sigma,
+        structure,
+    };
+    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
 
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
     let n = prob.dims.n();
-    let mut cons = embed(&gauge::constraints(layout, opts.gauge), n);
-    let first = assemble(&prob, &state, true);
+    let cons = embed(&gauge::constraints(layout, opts.gauge), n);
+    let first = assemble(&prob, &state);
     let scale = column_scale(&first.n);
-    let mut z = NullSpace::new(&cons, &scale);
-    let m0 = reduced_matrix(&first, &z, &scale);
-    let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &z, &scale, opts.rank_tolerance);
-    let mut first_reduced = None;
-    if ident.extra_constraints.nrows() > 0 {
-        cons = stack_rows(&cons, &ident.extra_constraints);
-        z = NullSpace::new(&cons, &scale);
-    } else {
-        first_reduced = Some(m0);
-    }
+    let gauge_z = NullSpace::new(&cons, &scale);
+    let m0 = reduced_matrix(&first, &gauge_z, &scale);
+    let f0 = Reduced::from_matrix(m0.clone(), 0.0).ok();
+    // The identifiability analysis fixes what the data leave undetermined. If the constrained
+    // matrix is still not positive definite (directions at the rounding level of a degenerate
+    // campaign), the analysis is repeated with a looser tolerance.
+    let mut tol = opts.rank_tolerance;
+    let mut f0 = f0;
+    let (ident, z, mut factor) = loop {
+        let ident = identify::analyse(
+            layout,
+            &prob_summary(&prob),
+            &first.n,
+            &m0,
+            f0.as_ref().map(|f| &f.llt),
+            &gauge_z,
+            &scale,
+            tol,
+        );
+        if ident.extra_constraints.nrows() == 0 {
+            if let Some(f) = f0.take() {
+                break (ident, NullSpace::new(&cons, &scale), f);
+            }
+        }
+        let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
+        match Reduced::new(&first, &z, &scale, 0.0) {
+            Ok(f) => break (ident, z, f),
+            Err(e) if tol < 1e-4 => {
+                warnings.push(format!(
+                    "the constrained normal matrix was not positive definite ({e}); undetermined directions re-detected with tolerance {:.0e}",
+                    tol * 1e3
+                ));
+                tol *= 1e3;
+            }
+            Err(e) => return Err(e),
+        }
+    };
     warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
@@ -395,31 +430,33 @@ pub fn solve(
     // so for beam-only problems the normal matrix of the first linearisation is kept and only
     // the gradient is refreshed; the matrix is re-assembled once at the solution for the
     // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    let mut frozen: Option<Reduced> = None;
+    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
+    // refreshed matrix that fails to factorise is not adopted).
+    let mut last_step = f64::INFINITY;
+    let mut stalls = 0;
     for it in 0..opts.max_iterations {
         iterations = it + 1;
         let step = if nonlinear {
-            reduced_step(&Reduced::new(&normal, &z, &scale, mu)?, &normal, &z, &scale)
-        } else {
-            if frozen.is_none() {
-                frozen = Some(match first_reduced.take() {
-                    Some(m) => Reduced::from_matrix(m, 0.0)?,
-                    None => Reduced::new(&normal, &z, &scale, 0.0)?,
-                });
+            match Reduced::new(&normal, &z, &scale, mu) {
+                Ok(r) => reduced_step(&r, &normal, &z, &scale),
+                Err(_) => {
+                    mu = (mu * 10.0).max(1e-6);
+                    continue;
+                }
             }
-            reduced_step(frozen.as_ref().unwrap(), &normal, &z, &scale)
+        } else {
+            reduced_step(&factor, &normal, &z, &scale)
         };
         let mut trial = state.clone();
         for k in 0..n {
             trial.d[k] += step.delta[k];
         }
         update_directions(&prob, &mut trial);
-        let trial_normal = if nonlinear {
-            assemble(&prob, &trial, true)
-        } else {
-            let g = assemble(&prob, &trial, false);
-            Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
-        };
+        let ratio = step.max_sigma_ratio / last_step;
+        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
+        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
+        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let trial_normal = if refresh { assemble(&prob, &trial) } else { gradient(&prob, &trial) };
         if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
             mu = (mu * 10.0).max(1e-6);
             if mu > 1e12 {
@@ -429,12 +466,21 @@ pub fn solve(
             continue;
         }
         mu *= 0.1;
-        if std::env::var_os("VOLCAL_TRACE").is_some() {
-            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
-        }
         state = trial;
         normal = trial_normal;
-        if step.max_sigma_ratio < opts.tolerance {
+        if refresh && !nonlinear {
+            match Reduced::new(&normal, &z, &scale, 0.0) {
+                Ok(r) => factor = r,
+                Err(_) => warnings
+                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
+            }
+        }
+        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
+        // row while already far below the uncertainty: the floating-point floor (the readings'
+        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
+        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
+        last_step = step.max_sigma_ratio;
+        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
             converged = true;
             break;
         }
@@ -447,8 +493,12 @@ pub fn solve(
     // the frozen one: its rows differ from those at the solution only through the change of
     // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
     // by a relative amount of the same order, far below the precision to which it is reported.
-    let final_res = residuals(&prob, &state);
-    let cov_scaled = reduced_covariance(&normal, &z, &scale)?;
+    let final_res = Residuals { residual: normal.res.residual.clone(), origin: normal.res.origin.clone() };
+    if nonlinear {
+        // At the solution, undamped; a tiny damping if rounding makes it indefinite.
+        factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+    }
+    let cov_scaled = z.embed(&factor.llt.inverse());
     let n_obs = obs.len();
     let n_free = z.dim();
     let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
@@ -553,7 +603,15 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
             offsets.push(v);
         }
     }
+    let mut coverage = [[f64::INFINITY, f64::NEG_INFINITY]; 3];
+    for x in &p.obs.x {
+        for a in 0..3 {
+            coverage[a][0] = coverage[a][0].min(x[a]);
+            coverage[a][1] = coverage[a][1].max(x[a]);
+        }
+    }
     identify::DataSummary {
+        coverage,
         gauge: p.gauge,
         probe_offsets: offsets,
         n_beams: p.obs.groups_of(ObsKind::Beam).count(),
@@ -574,7 +632,19 @@ fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
 /// (patent: the least-squares line of the machine points).
 fn update_directions(p: &Problem<'_>, s: &mut State) {
     let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
-    s.actual = (0..p.obs.len()).map(|i| chain.position(&p.obs.x[i], &p.obs.p[i])).collect();
+    let (actual, frames): (Vec<_>, Vec<_>) = (0..p.obs.len())
+        .map(|i| match &p.structure {
+            // The basis values at the readings' coordinates do not change during a solve.
+            Some(st) => chain.position_with_frames_cached(
+                &p.obs.x[i],
+                &p.obs.p[i],
+                std::array::from_fn(|a| (st.first[i][a], st.b(i, a))),
+            ),
+            None => chain.position_with_frames(&p.obs.x[i], &p.obs.p[i]),
+        })
+        .unzip();
+    s.actual = actual;
+    s.frames = frames;
     for (gi, g) in p.obs.groups.iter().enumerate() {
         if g.kind != ObsKind::Beam || p.dir_owner[gi] != gi {
             continue;
@@ -619,6 +689,73 @@ fn predict_reading(p: &Problem<'_>, s: &State, gi: usize, i: usize) -> (Vector3<
     }
 }
 
+/// Residual of reading `i` (reading minus prediction, without the group origin) and the
+/// direction along which the reading increases; `ebuf` receives the effects' regressors.
+fn residual(p: &Problem<'_>, s: &State, gi: usize, i: usize, ebuf: &mut Vec<f64>) -> (f64, Vector3<f64>) {
+    let (dir, mut f, actual) = predict_reading(p, s, gi, i);
+    ebuf.clear();
+    if p.dims.n_e > 0 {
+        let ctx = ObsContext { obs: p.obs, i, group: &p.obs.groups[gi], direction: dir, actual };
+        let mut col = p.dims.effect_col();
+        for e in p.effects {
+            let start = ebuf.len();
+            ebuf.resize(start + e.param_names().len(), 0.0);
+            e.regressors(&ctx, &mut ebuf[start..]);
+            for &v in &ebuf[start..] {
+                f += v * s.d[col];
+                col += 1;
+            }
+        }
+    }
+    (p.obs.l[i] - f, dir)
+}
+
+/// Calls `emit(column, value)` for every entry of the row of reading `i` with direction `dir`,
+/// in increasing column order: for each axis the exact derivatives of `n . P` with respect to
+/// its six error values times the basis values of its functions; the squareness errors; the
+/// station coordinates (ranges); the effects' regressors (given in `ebuf`).
+#[inline]
+fn for_each_entry(
+    p: &Problem<'_>,
+    s: &State,
+    gi: usize,
+    i: usize,
+    dir: &Vector3<f64>,
+    ebuf: &[f64],
+    mut emit: impl FnMut(usize, f64),
+) {
+    let x = &p.obs.x[i];
+    for a in 0..3 {
+        let d = s.frames[i][a].projected(dir);
+        for (f, &df) in d.iter().enumerate() {
+            let off = p.layout.offsets[a * 6 + f];
+            match &p.structure {
+                Some(st) => {
+                    let col = off + st.first[i][a];
+                    for (k, &bk) in st.b(i, a).iter().enumerate() {
+                        emit(col + k, df * bk);
+                    }
+                }
+                None => p.layout.bases[a * 6 + f].visit(x[a], false, |k, bk| emit(off + k, df * bk)),
+            }
+        }
+    }
+    for sq in crate::functions::Squareness::ALL {
+        let a = sq.axis();
+        emit(p.layout.squareness_index(sq), s.frames[i][a.index()].projected_squareness(dir, sq, a.coord(x)));
+    }
+    if p.obs.groups[gi].kind == ObsKind::Range {
+        let c = p.dims.station_col(p.group_station[gi]);
+        for k in 0..3 {
+            emit(c + k, -dir[k]);
+        }
+    }
+    let col = p.dims.effect_col();
+    for (k, &v) in ebuf.iter().enumerate() {
+        emit(col + k, v);
+    }
+}
+
 /// Builds the sparse row of reading `i` (sorted column indices); returns its residual and the
 /// direction along which the reading increases.
 fn row(
@@ -632,67 +769,58 @@ fn row(
 ) -> (f64, Vector3<f64>) {
     idx.clear();
     val.clear();
-    let (dir, mut f, actual) = predict_reading(p, s, gi, i);
-    match &p.structure {
-        Some(st) => {
-            // Row = sum over axes of (n, h x n) (x) basis values: n . de/du without forming de/du.
-            for a in 0..3 {
-                let hn = st.lever[i][a].cross(&dir);
-                let d = [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z];
-                let b = st.b(i, a);
-                let first = st.first[i][a];
-                for (f, &df) in d.iter().enumerate() {
-                    let col = p.layout.offsets[a * 6 + f] + first;
-                    for (k, &bk) in b.iter().enumerate() {
-                        idx.push(col + k);
-                        val.push(df * bk);
-                    }
-                }
-            }
-            let x = &p.obs.x[i];
-            for sq in crate::functions::Squareness::ALL {
-                idx.push(p.layout.squareness_index(sq));
-                val.push(dir.dot(&sq.direction_per_metre()) * sq.axis().coord(x));
-            }
+    let (r, dir) = residual(p, s, gi, i, ebuf);
+    for_each_entry(p, s, gi, i, &dir, ebuf, |k, v| {
+        idx.push(k);
+        val.push(v);
+    });
+    (r, dir)
+}
+
+/// The gradient `b`, the cost and the centred residuals at a state, without the normal matrix
+/// (the frozen-matrix iterations need only these).
+fn gradient(p: &Problem<'_>, s: &State) -> Normal {
+    let n = p.dims.n();
+    let mut b = vec![0.0; n];
+    let mut res = Residuals { residual: vec![0.0; p.obs.len()], origin: vec![0.0; p.obs.groups.len()] };
+    let mut cost = 0.0;
+    let mut ebuf = Vec::new();
+    let mut dirs: Vec<Vector3<f64>> = Vec::new();
+    let mut regs: Vec<f64> = Vec::new();
+    for (gi, g) in p.obs.groups.iter().enumerate() {
+        dirs.clear();
+        regs.clear();
+        let (mut wsum, mut wr) = (0.0, 0.0);
+        for i in g.range() {
+            let (r, dir) = residual(p, s, gi, i, &mut ebuf);
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            res.residual[i] = r;
+            dirs.push(dir);
+            regs.extend_from_slice(&ebuf);
+            wsum += w;
+            wr += w * r;
         }
-        None => {
-            for (k, v) in p.sens[i].project(&dir) {
-                idx.push(k);
-                val.push(v);
-            }
-        }
-    }
-    let g = &p.obs.groups[gi];
-    if g.kind == ObsKind::Range {
-        let c = p.dims.station_col(p.group_station[gi]);
-        for k in 0..3 {
-            idx.push(c + k);
-            val.push(-dir[k]);
-        }
-    }
-    if p.dims.n_e > 0 {
-        let ctx = ObsContext { obs: p.obs, i, group: g, direction: dir, actual };
-        let mut col = p.dims.effect_col();
-        for e in p.effects {
-            let m = e.param_names().len();
-            ebuf.clear();
-            ebuf.resize(m, 0.0);
-            e.regressors(&ctx, ebuf);
-            for &v in ebuf.iter() {
-                f += v * s.d[col];
-                idx.push(col);
-                val.push(v);
-                col += 1;
-            }
+        let rm = wr / wsum;
+        res.origin[gi] = rm;
+        let ne = p.dims.n_e;
+        for (j, i) in g.range().enumerate() {
+            let rc = res.residual[i] - rm;
+            res.residual[i] = rc;
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            cost += w * rc * rc;
+            let wr = w * rc;
+            for_each_entry(p, s, gi, i, &dirs[j], &regs[j * ne..(j + 1) * ne], |k, v| b[k] += wr * v);
         }
     }
-    (p.obs.l[i] - f, dir)
+    Normal { n: Mat::zeros(0, 0), b, cost, res }
 }
 
 /// Assembles the normal equations, eliminating each group's origin. Residuals are centred per
 /// group before they enter `b` and the cost, so the large arbitrary origins of the readings never
 /// meet the small residuals in one sum.
-fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
+fn assemble(p: &Problem<'_>, s: &State) -> Normal {
+    let with_matrix = true;
+    let mut res = Residuals { residual: vec![0.0; p.obs.len()], origin: vec![0.0; p.obs.groups.len()] };
     let n = p.dims.n();
     let ng = p.obs.groups.len();
     let mut upper = normal::Upper::new(if with_matrix { n } else { 0 });
@@ -700,6 +828,7 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
     // Weighted column sums per group, scaled by 1/sqrt(W): N -= S S^T.
     let mut smat = if with_matrix { Mat::<f64>::zeros(n, ng) } else { Mat::zeros(0, 0) };
     let mut gsum = vec![0.0; n];
+    let mut is_touched = vec![false; n];
     let mut touched: Vec<usize> = Vec::new();
     let (mut idx, mut val, mut ebuf) = (Vec::with_capacity(128), Vec::with_capacity(128), Vec::new());
     // Rows of the current group: (start offset into idx/val buffers, residual, weight).
@@ -732,8 +861,10 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             wr += w * r;
         }
         let rm = wr / wsum;
-        for &(start, len, r, w) in &rows {
+        res.origin[gi] = rm;
+        for (&(start, len, r, w), &i) in rows.iter().zip(&rowobs) {
             let rc = r - rm;
+            res.residual[i] = rc;
             cost += w * rc * rc;
             let ri = &gidx[start..start + len];
             let rv = &gval[start..start + len];
@@ -745,7 +876,9 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             }
             for a in 0..len {
                 let ia = ri[a];
-                if gsum[ia] == 0.0 {
+                // An explicit marker: a running sum can cancel to exactly zero mid-group.
+                if !is_touched[ia] {
+                    is_touched[ia] = true;
                     touched.push(ia);
                 }
                 gsum[ia] += w * rv[a];
@@ -754,14 +887,10 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
                 let i = rowobs[rows_seen];
                 let dir = dirs_of_rows[rows_seen];
                 let n_sq = p.layout.n_params - 3;
-                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| {
-                    let h = st.lever[i][a];
-                    let hn = h.cross(&dir);
-                    normal::AxisSegment {
-                        col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
-                        d: [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z],
-                        b: st.b(i, a),
-                    }
+                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| normal::AxisSegment {
+                    col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
+                    d: s.frames[i][a].projected(&dir),
+                    b: st.b(i, a),
                 });
                 let extras: Vec<(usize, f64)> =
                     ri.iter().zip(rv).filter(|(&c, _)| c >= n_sq).map(|(&c, &v)| (c, v)).collect();
@@ -789,45 +918,40 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             for &k in &touched {
                 smat[(k, gi)] = gsum[k] / sw;
                 gsum[k] = 0.0;
+                is_touched[k] = false;
             }
             touched.clear();
         }
     }
-    if !with_matrix {
-        return Normal { n: Mat::zeros(0, 0), b, cost };
-    }
     let mut nm = upper.to_mat();
     matmul(nm.as_mut(), Accum::Add, smat.as_ref(), smat.transpose(), -1.0, Par::Seq);
-    Normal { n: nm, b, cost }
+    // Eliminating the origins computes `sum w a^2 - (sum w a)^2 / W`, which cancels for a column
+    // that is (nearly) constant within every line and leaves rounding noise of ~eps relative to
+    // the raw sum; the Jacobi scaling would amplify it by raw / centred. A column whose centred
+    // energy is below 1e-5 of its raw energy therefore carries no information this double-
+    // precision solve can resolve (the noise left elsewhere is then below 2e-11, under the rank
+    // tolerance): it is set exactly to zero, and the identifiability report names it.
+    // Likewise a model column whose centred energy is below 1e-10 of its reference energy (the
+    // energy it would have at its nominal first-order sensitivity: a sensitivity below 1e-5 of
+    // nominal, e.g. a beam orthogonal to a function up to rounding or seen only at second order)
+    // is not observed; the Jacobi scaling would otherwise promote it to information.
+    for k in 0..n {
+        let raw = upper.data[k * n + k];
+        let weak = k < p.ref_energy.len() && nm[(k, k)] <= NOMINAL_FLOOR * p.ref_energy[k];
+        if nm[(k, k)] <= CENTRED_FLOOR * raw || weak {
+            for j in 0..n {
+                nm[(k, j)] = 0.0;
+                nm[(j, k)] = 0.0;
+            }
+        }
+    }
+    Normal { n: nm, b, cost, res }
 }
 
 /// Centred residuals and group origins at a state.
 struct Residuals {
     residual: Vec<f64>,
     origin: Vec<f64>,
-}
-
-fn residuals(p: &Problem<'_>, s: &State) -> Residuals {
-    let mut residual = vec![0.0; p.obs.len()];
-    let mut origin = vec![0.0; p.obs.groups.len()];
-    let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
-    for (gi, g) in p.obs.groups.iter().enumerate() {
-        let mut wsum = 0.0;
-        let mut wr = 0.0;
-        for i in g.range() {
-            let (r, _) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
-            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
-            residual[i] = r;
-            wsum += w;
-            wr += w * r;
-        }
-        let rm = wr / wsum;
-        origin[gi] = rm;
-        for i in g.range() {
-            residual[i] -= rm;
-        }
-    }
-    Residuals { residual, origin }
 }
 
 /// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
@@ -890,12 +1014,145 @@ fn reduced_step(red: &Reduced, normal: &Normal, z: &NullSpace, scale: &[f64]) ->
     Step { delta: (0..n).map(|i| ds[(i, 0)] / scale[i]).collect(), max_sigma_ratio: max_ratio }
 }
 
-/// Covariance in scaled coordinates: `Z (Z^T N_s Z)^-1 Z^T`.
-fn reduced_covariance(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Result<Mat<f64>, SolveError> {
-    let m = reduced_matrix(normal, z, scale);
-    let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
-    Ok(z.embed(&llt.inverse()))
+/// Smallest resolvable ratio of a column's centred to raw energy (see `assemble`).
+const CENTRED_FLOOR: f64 = 1e-5;
+/// Smallest ratio of a model column's energy to its reference energy (see `reference_energy`).
+const NOMINAL_FLOOR: f64 = 1e-10;
+
+/// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
+/// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
+/// largest probe offset) or the axis coordinate (squareness), squared and weighted.
+fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64]) -> Vec<f64> {
+    use crate::functions::{ErrorFunction, Motion, Squareness};
+    let t = &layout.travel;
+    let diag =
+        (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
+    let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let mut e = vec![0.0; layout.n_params];
+    for i in 0..obs.len() {
+        let w = 1.0 / (sigma[i] * sigma[i]);
+        for f in ErrorFunction::all() {
+            let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
+            let off = layout.offsets[f.index()];
+            layout.basis(f).visit(f.axis.coord(&obs.x[i]), false, |k, b| e[off + k] += w * (typ * b).powi(2));
+        }
+        for s in Squareness::ALL {
+            e[layout.squareness_index(s)] += w * s.axis().coord(&obs.x[i]).powi(2);
+        }
+    }
+    e
 }
 
 /// Number of gauge freedoms (re-exported for reports).
 pub const GAUGE_FREEDOMS: usize = GAUGE_DIM;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axis::Travel;
+    use crate::campaign::{prepare, Campaign, CampaignMeta, Reading, ScaleExpansion};
+    use crate::repr::Representation;
+    use crate::topology::Topology;
+
+    /// Lines parallel to X (a degenerate, symmetric geometry) with arbitrary readings.
+    fn problem_data() -> (ModelLayout, Observations) {
+        let layout = ModelLayout::uniform(
+            Topology::parse("FXYZ").unwrap(),
+            Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            Representation::BSpline { intervals: 5 },
+        );
+        let mut readings = Vec::new();
+        for (line, (y, z)) in [(0.1, -0.5), (0.4, -0.3), (0.7, -0.1)].into_iter().enumerate() {
+            for k in 0..15 {
+                let x = 0.05 + 0.9 * k as f64 / 14.0;
+                readings.push(Reading {
+                    kind: ObsKind::Beam,
+                    station: 0,
+                    line: line as u32,
+                    t_s: k as f64,
+                    l_m: x + 1e-6 * ((k * 7 + line) % 5) as f64,
+                    x: Point3::new(x, y, z),
+                    p: Vector3::new(0.0, 0.0, -0.1),
+                    air: None,
+                    machine_temp_c: None,
+                    velocity: None,
+                    beam_broken: false,
+                    source_line: 0,
+                });
+            }
+        }
+        let c = Campaign { meta: CampaignMeta::default(), readings };
+        let p = prepare(&c, &layout.travel, &ScaleExpansion::default()).unwrap();
+        (layout, p.obs)
+    }
+
+    #[test]
+    fn assembly_matches_brute_force() {
+        let (layout, obs) = problem_data();
+        let dims = Dims { n_u: layout.n_params, stations: Vec::new(), n_e: 0 };
+        let n = dims.n();
+        let prob = Problem {
+            layout: &layout,
+            gauge: Gauge::Patent,
+            obs: &obs,
+            dims,
+            effects: &[],
+            group_station: vec![usize::MAX; obs.groups.len()],
+            dir_owner: (0..obs.groups.len()).collect(),
+            sigma: vec![1e-7; obs.len()],
+            structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
+        };
+        assert!(prob.structure.is_some());
+        let mut st = State {
+            d: vec![0.0; n],
+            dirs: vec![Vector3::zeros(); obs.groups.len()],
+            actual: Vec::new(),
+            frames: Vec::new(),
+        };
+        update_directions(&prob, &mut st);
+        let fast = assemble(&prob, &st);
+        let mut dense = Mat::<f64>::zeros(n, n);
+        let (mut idx, mut val, mut eb) = (Vec::new(), Vec::new(), Vec::new());
+        for (gi, g) in obs.groups.iter().enumerate() {
+            let mut rows = Vec::new();
+            for i in g.range() {
+                row(&prob, &st, gi, i, &mut idx, &mut val, &mut eb);
+                let mut a = vec![0.0; n];
+                for (&k, &v) in idx.iter().zip(&val) {
+                    a[k] += v;
+                }
+                rows.push(a);
+            }
+            let w = 1.0 / (1e-7 * 1e-7);
+            let mean: Vec<f64> = (0..n).map(|k| rows.iter().map(|r| r[k]).sum::<f64>() / rows.len() as f64).collect();
+            for r in &rows {
+                for i in 0..n {
+                    for j in 0..n {
+                        dense[(i, j)] += w * (r[i] - mean[i]) * (r[j] - mean[j]);
+                    }
+                }
+            }
+        }
+        let ev = fast.n.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let emax = ev.iter().cloned().fold(0.0, f64::max);
+        assert!(ev[0] > -1e-10 * emax, "normal matrix not PSD: {} relative", ev[0] / emax);
+        let sc = column_scale(&fast.n);
+        let z = NullSpace::new(&embed(&gauge::constraints(&layout, Gauge::Patent), n), &sc);
+        let m = reduced_matrix(&fast, &z, &sc);
+        let evm = m.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let mmax = evm.iter().cloned().fold(0.0, f64::max);
+        assert!(evm[0] > -1e-10 * mmax, "reduced matrix not PSD: {} relative", evm[0] / mmax);
+        let scale = (0..n).map(|i| dense[(i, i)]).fold(0.0, f64::max);
+        for i in 0..n {
+            for j in 0..n {
+                assert!(
+                    (fast.n[(i, j)] - dense[(i, j)]).abs() < 1e-9 * scale,
+                    "({i}, {j}): {} vs {}",
+                    fast.n[(i, j)],
+                    dense[(i, j)]
+                );
+            }
+        }
+    }
+}

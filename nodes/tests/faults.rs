@@ -95,7 +95,7 @@ launch:
         - {{name: topic_timeout_s, value: 3}}
 "#,
         m = cfg.join("machines/demo_cmm.yaml").display(),
-        p = cfg.join("plans/short.yaml").display(),
+        p = cfg.join("plans/sim_short.yaml").display(),
         bag = dir.join("bag").display()
     );
     let file = dir.join("no_machine.yaml");

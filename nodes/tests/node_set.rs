@@ -78,7 +78,7 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     let dir = volcal_tests::scratch("node-set-e2e");
     let bag = dir.join("short");
     let machine_path = repo().join("launch_configs/machines/demo_cmm.yaml");
-    let plan_path = repo().join("launch_configs/plans/short.yaml");
+    let plan_path = repo().join("launch_configs/plans/sim_short.yaml");
 
     // Record, with a CycloneDDS subscriber listening.
     let cyclone = CycloneSubscriber::start(lease.id, 200, 120.0);
