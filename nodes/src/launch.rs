@@ -568,6 +568,28 @@ launch:
     }
 
     #[test]
+    fn repository_launch_configs_parse() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs");
+        let mut n = 0;
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "yaml") {
+                let mut o = BTreeMap::new();
+                o.insert("bag".to_string(), "/tmp/b".to_string());
+                let d = LaunchDescription::load(&p, &o).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
+                for node in &d.nodes {
+                    assert!(crate::node::by_name(&node.exec).is_some(), "{}: unknown node {}", p.display(), node.exec);
+                    for v in node.params.values().filter(|v| v.ends_with(".yaml")) {
+                        assert!(Path::new(v).exists(), "{}: {v} does not exist", p.display());
+                    }
+                }
+                n += 1;
+            }
+        }
+        assert!(n >= 5);
+    }
+
+    #[test]
     fn errors_name_the_place() {
         let e = LaunchDescription::parse(FILE, "t.yaml", "/cfg", &[("nope".to_string(), "1".to_string())].into())
             .unwrap_err();

@@ -160,3 +160,35 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     eprintln!("DDS chain residuals: RMS {:.4} um, chi2/dof {:.3}", r.rms_m * 1e6, r.variance_factor);
     assert!(r.variance_factor < 1.5, "chi2/dof {} of the DDS campaign", r.variance_factor);
 }
+
+#[test]
+fn tracer_campaign_over_dds_records_ranges_that_solve_like_offline() {
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("node-set-tracer");
+    let bag = dir.join("tracer");
+    let machine_path = repo().join("launch_configs/machines/demo_cmm.yaml");
+    let plan_path = repo().join("launch_configs/plans/tracer_short.yaml");
+    let (st, out) = Launch::start(&launch_config("sim_tracer_short.yaml"), Some(&bag), lease.id, &[])
+        .wait(Duration::from_secs(240));
+    assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 432 acquired points"), "{out}");
+    let campaign = volcal_nodes::commands::load_campaign(&bag).unwrap();
+    assert_eq!(campaign.readings.len(), 432);
+    assert!(campaign.readings.iter().all(|r| r.kind == volcal::campaign::ObsKind::Range));
+    let (dds, _) = solve_cmd(&bag, &machine_path, &dir.join("model_dds.json")).unwrap();
+    let csv = dir.join("tracer.csv");
+    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None).unwrap();
+    let (off, _) = solve_cmd(&csv, &machine_path, &dir.join("model_offline.json")).unwrap();
+    let (rd, ro) = (dds.file.residuals.unwrap(), off.file.residuals.unwrap());
+    eprintln!(
+        "tracer over DDS: RMS {:.4} um, chi2/dof {:.3}; offline: RMS {:.4} um, chi2/dof {:.3}",
+        rd.rms_m * 1e6,
+        rd.variance_factor,
+        ro.rms_m * 1e6,
+        ro.variance_factor
+    );
+    assert!(rd.variance_factor < 1.5, "chi2/dof {} of the tracer campaign over DDS", rd.variance_factor);
+    // The same plan identifies the same functions, whichever way it was acquired.
+    assert_eq!(dds.file.identifiability.identified_functions, off.file.identifiability.identified_functions);
+    assert_eq!(dds.file.stations.len(), 4);
+}

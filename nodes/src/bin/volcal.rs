@@ -71,8 +71,10 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Print a model's report; optionally write per-axis compensation tables.
-    #[command(after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101")]
+    /// Print a model's report (or a bag's: what was recorded and paired); optionally write per-axis compensation tables.
+    #[command(
+        after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101\n  volcal report bags/sim_short          (a bag: topics, pairs, pairing; and model.json if the solver node left one there)"
+    )]
     Report {
         model: PathBuf,
         /// Write compensation_x.csv, compensation_y.csv, compensation_z.csv here.
@@ -189,7 +191,11 @@ fn run() -> anyhow::Result<ExitCode> {
             eprintln!("wrote {n} grid points to {}", out.display());
         }
         Command::Report { model, compensation_dir, points } => {
-            print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
+            if volcal_nodes::launch_cmd::is_bag(&model) {
+                print!("{}", volcal_nodes::launch_cmd::bag_report(&model, compensation_dir.as_deref(), points)?)
+            } else {
+                print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
+            }
         }
         Command::Demo { workdir, seed } => commands::demo_cmd(workdir.as_deref(), seed)?,
         Command::Launch { file, bag, domain, args } => {
