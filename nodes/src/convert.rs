@@ -2,7 +2,7 @@
 //! (`volcal::campaign::Reading`), the pairing events and the model file. Serialisation lives in
 //! the shell: the core never sees a message.
 
-use crate::backend::InstrumentInfo;
+use crate::backend::{InstrumentInfo, Truth};
 use crate::model_file::ModelFile;
 use crate::pairing::{EnvironmentEvent, Method, Pair, PositionEvent, ReadingEvent, TriggerEvent};
 use anyhow::{anyhow, Result};
@@ -10,8 +10,8 @@ use nalgebra::{Point3, Vector3};
 use volcal::campaign::{CampaignMeta, Compensation, ObsKind, Reading};
 use volcal::environment::{Air, AirIndexEquation};
 use volcal_msgs::msg::{
-    Abscissa, AbscissaBatch, Environment, ErrorFunction, ErrorModel, InterferometerInfo, MachinePosition,
-    MachinePositionBatch, SyncedPair, TracerRange, Trigger,
+    Abscissa, AbscissaBatch, BeamState, Environment, ErrorFunction, ErrorModel, InterferometerInfo, MachinePosition,
+    MachinePositionBatch, ReflectorTruth, SyncedPair, TracerRange, Trigger,
 };
 use volcal_msgs::std_msgs::msg::Header;
 
@@ -262,4 +262,26 @@ pub fn error_model_msg(f: &ModelFile, stamp_ns: i64) -> Result<ErrorModel> {
         software: f.provenance.software.clone(),
         model_json: serde_json::to_string(f)?,
     })
+}
+
+/// The simulation truth of the actual beam (`/sim/truth/beam`).
+pub fn beam_truth(b: &BeamState) -> Truth {
+    Truth::Beam {
+        stamp_ns: b.header.stamp.to_nanos(),
+        station: b.station,
+        beam: b.beam,
+        origin: Point3::from(b.origin_m),
+        direction: Vector3::from(b.direction),
+    }
+}
+
+/// The simulation truth of the reflector (`/sim/truth/reflector`).
+pub fn reflector_truth(r: &ReflectorTruth) -> Truth {
+    Truth::Reflector {
+        stamp_ns: r.header.stamp.to_nanos(),
+        position_id: r.position_id,
+        settled: r.settled,
+        actual: Point3::from(r.actual_m),
+        velocity: Vector3::from(r.velocity_mps),
+    }
 }

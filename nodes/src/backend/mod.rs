@@ -59,8 +59,8 @@ pub struct LengthReading {
 /// What the sim nodes tell each other about the simulated world (never the solver).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Truth {
-    /// The actual beam after the deflector settled.
-    Beam { station: u32, beam: u32, origin: Point3<f64>, direction: Vector3<f64> },
+    /// The actual beam, from `stamp_ns` (when the deflector settled) on.
+    Beam { stamp_ns: i64, station: u32, beam: u32, origin: Point3<f64>, direction: Vector3<f64> },
     /// The actual reflector position at `stamp_ns`.
     Reflector { stamp_ns: i64, position_id: u64, settled: bool, actual: Point3<f64>, velocity: Vector3<f64> },
 }

@@ -156,8 +156,12 @@ pub struct SimInterferometer {
     rng: ChaCha8Rng,
     /// Relative noise of the signal-strength reading.
     pub signal_noise: f64,
+    /// The beam the deflector last reported (station, beam).
     ids: Option<(u32, u32)>,
-    beam: Option<(u32, u32, BeamLine)>,
+    /// The true beams, each from the instant it settled, in time order.
+    beams: Vec<(i64, u32, u32, BeamLine)>,
+    /// The beam the count refers to.
+    counted: Option<(i64, u32, u32)>,
     reflector: ReflectorHistory,
     counter: Counter,
 }
@@ -170,9 +174,21 @@ impl SimInterferometer {
             rng: world.rng(0x494e_5446),
             signal_noise,
             ids: None,
-            beam: None,
+            beams: Vec::new(),
+            counted: None,
             reflector: ReflectorHistory::default(),
             counter: Counter::default(),
+        }
+    }
+
+    /// The true beam for a reading at `at_ns`: for a triggered reading, the beam the deflector
+    /// reports now (once its truth has arrived); for a free-running sample, which may be
+    /// computed a little after its instant, the beam that was settled at that instant.
+    fn beam_for(&self, at_ns: i64, triggered: bool) -> Option<(i64, u32, u32, BeamLine)> {
+        if triggered {
+            self.beams.last().filter(|b| Some((b.1, b.2)) == self.ids).copied()
+        } else {
+            self.beams.iter().rev().find(|b| b.0 <= at_ns).copied()
         }
     }
 }
@@ -189,19 +205,18 @@ impl InterferometerBackend for SimInterferometer {
     }
 
     fn new_beam(&mut self, station: u32, beam: u32) {
-        if self.ids != Some((station, beam)) {
-            self.ids = Some((station, beam));
-            self.counter.restart();
-        }
+        // The count restarts with the first reading on the new true beam (see `read`).
+        self.ids = Some((station, beam));
     }
 
     fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
-        let Some((s, b, beam)) = self.beam else { return Ok(None) };
-        if self.ids != Some((s, b)) {
-            // The true beam of the commanded direction has not arrived yet.
-            return Ok(None);
-        }
+        // `None` until the true beam (and the reflector truth) for this reading have arrived.
+        let Some((since, s, b, beam)) = self.beam_for(at_ns, position_id.is_some()) else { return Ok(None) };
         let Some(actual) = self.reflector.actual(at_ns, position_id) else { return Ok(None) };
+        if self.counted != Some((since, s, b)) {
+            self.counted = Some((since, s, b));
+            self.counter.restart();
+        }
         let d = lateral(&beam, &actual);
         let noise: f64 = self.rng.random_range(-1.0..1.0) * self.signal_noise;
         let signal = (self.world_cfg.deflector.signal_strength(d) * (1.0 + noise)).clamp(0.0, 1.0);
@@ -214,8 +229,15 @@ impl InterferometerBackend for SimInterferometer {
 
     fn truth(&mut self, t: &Truth) {
         match t {
-            Truth::Beam { station, beam, origin, direction } => {
-                self.beam = Some((*station, *beam, BeamLine { origin: *origin, direction: *direction }))
+            Truth::Beam { stamp_ns, station, beam, origin, direction } => {
+                let line = BeamLine { origin: *origin, direction: *direction };
+                if !self.beams.iter().any(|x| x.0 == *stamp_ns && (x.1, x.2) == (*station, *beam)) {
+                    let i = self.beams.partition_point(|x| x.0 <= *stamp_ns);
+                    self.beams.insert(i, (*stamp_ns, *station, *beam, line));
+                }
+                if self.beams.len() > 16 {
+                    self.beams.remove(0);
+                }
             }
             Truth::Reflector { .. } => self.reflector.push(t),
         }

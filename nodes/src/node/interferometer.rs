@@ -6,14 +6,13 @@
 //! Parameters: `backend` (sim), `rate_hz` (0: triggered only), `batch` (1), `latch_timeout_s`
 //! (1.0), and for the sim backend `machine`, `plan`, `seed`, `signal_noise` (0.001).
 
+use super::latch::PendingTriggers;
 use super::{check_backend, secs, TICK};
 use crate::backend::sim::{SimInterferometer, SimWorld};
-use crate::backend::{InterferometerBackend, LengthReading, Truth};
-use crate::convert::info_to_msg;
-use crate::pairing::trigger_type;
+use crate::backend::{InterferometerBackend, LengthReading};
+use crate::convert::{self, info_to_msg};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{bail, Result};
-use nalgebra::{Point3, Vector3};
 use volcal_msgs::msg::{Abscissa, AbscissaBatch, BeamState, InterferometerInfo, ReflectorTruth, Trigger};
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
@@ -52,8 +51,12 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     let info = node.publisher::<InterferometerInfo>(topics::INTERFEROMETER_INFO, qos::latched())?;
     info.publish(info_to_msg(&backend.info(), now_ns())).map_err(|e| anyhow::anyhow!("{e:?}"))?;
 
-    let mut ids = (0u32, 0u32);
-    let mut pending: Vec<(Trigger, i64)> = Vec::new();
+    // The beam ids reported by the deflector, in time: a free-running sample is tagged with the
+    // beam of its instant, even if it is computed after the deflector moved on.
+    let mut ids_history: Vec<(i64, (u32, u32))> = Vec::new();
+    let ids_at =
+        |h: &Vec<(i64, (u32, u32))>, t: i64| h.iter().rev().find(|x| x.0 <= t).or(h.first()).map_or((0, 0), |x| x.1);
+    let mut pending = PendingTriggers::new(Trigger::KIND_BEAM, latch_timeout);
     let period_ns = if rate_hz > 0.0 { (1e9 / rate_hz) as i64 } else { 0 };
     let mut next_sample = now_ns();
     let mut acc = AbscissaBatch::default();
@@ -63,84 +66,71 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
         let wait = if period_ns > 0 { secs((next_sample - now_ns()) as f64 * 1e-9).min(TICK) } else { TICK };
         node.wait(wait);
         while let Ok(Some((s, _))) = states.take() {
-            ids = (s.station, s.beam);
+            let t = s.header.stamp.to_nanos();
+            if ids_history.last().is_none_or(|l| l.1 != (s.station, s.beam)) {
+                ids_history.push((t, (s.station, s.beam)));
+                if ids_history.len() > 16 {
+                    ids_history.remove(0);
+                }
+            }
             backend.new_beam(s.station, s.beam);
         }
         if let Some((beam, refl)) = &truth {
             while let Ok(Some((b, _))) = beam.take() {
-                backend.truth(&Truth::Beam {
-                    station: b.station,
-                    beam: b.beam,
-                    origin: Point3::from(b.origin_m),
-                    direction: Vector3::from(b.direction),
-                });
+                backend.truth(&convert::beam_truth(&b));
             }
             while let Ok(Some((r, _))) = refl.take() {
-                backend.truth(&Truth::Reflector {
-                    stamp_ns: r.header.stamp.to_nanos(),
-                    position_id: r.position_id,
-                    settled: r.settled,
-                    actual: Point3::from(r.actual_m),
-                    velocity: Vector3::from(r.velocity_mps),
-                });
-            }
-        }
-        while let Ok(Some((t, _))) = triggers.take() {
-            if t.kind == Trigger::KIND_BEAM
-                && (t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE)
-            {
-                pending.push((t, now_ns()));
+                backend.truth(&convert::reflector_truth(&r));
             }
         }
         let now = now_ns();
-        let mut keep = Vec::new();
-        for (t, received) in pending.drain(..) {
-            match backend.read(now, Some(t.point), Some(t.position_id))? {
-                Some(r) => {
-                    let msg = abscissa(now, ids, &r, t.trigger_id);
-                    out.publish(msg).map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
-                    published += 1;
-                }
-                None if now - received > latch_timeout => {
-                    log::warn!("trigger {}: no reading possible within the latch timeout; dropped", t.trigger_id)
-                }
-                None => keep.push((t, received)),
-            }
-        }
-        pending = keep;
+        pending.take_from(&triggers, now);
+        pending.service(now, |t| {
+            let Some(r) = backend.read(now, Some(t.point), Some(t.position_id))? else { return Ok(false) };
+            out.publish(abscissa(now, ids_at(&ids_history, i64::MAX), &r, t.trigger_id))
+                .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
+            published += 1;
+            Ok(true)
+        })?;
         if period_ns > 0 {
             while next_sample <= now_ns() {
-                let Some(r) = backend.read(next_sample, None, None)? else {
-                    // Not readable yet (the simulated instrument waits for the truth of this
-                    // instant); give up on samples more than `max_lag` old.
-                    if now_ns() - next_sample > max_lag_ns {
-                        skipped += 1;
-                        next_sample += period_ns;
-                        continue;
-                    }
+                let r = backend.read(next_sample, None, None)?;
+                let ids = ids_at(&ids_history, next_sample);
+                // Not readable yet (the simulated instrument waits for the truth of this instant):
+                // retry later; samples more than `max_lag` old are given up.
+                let gap = r.is_none() && now_ns() - next_sample > max_lag_ns;
+                if r.is_none() && !gap {
                     break;
-                };
-                {
-                    if let Some(pb) = &out_batch {
-                        if acc.abscissa_m.is_empty() {
-                            acc.header = Header::at(next_sample, &format!("deflector/{}", ids.0));
-                            acc.station = ids.0;
-                            acc.beam = ids.1;
-                            acc.sample_period_s = period_ns as f64 * 1e-9;
-                        }
-                        acc.abscissa_m.push(r.value_m);
-                        acc.signal_strength.push(r.signal_strength as f32);
-                        acc.beam_broken.push(r.beam_broken);
-                        if acc.abscissa_m.len() >= batch || (acc.station, acc.beam) != ids {
-                            pb.publish(std::mem::take(&mut acc))
-                                .map_err(|e| anyhow::anyhow!("publish batch: {e:?}"))?;
-                        }
-                    } else {
-                        out.publish(abscissa(next_sample, ids, &r, 0))
-                            .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
-                    }
-                    published += 1;
                 }
+                // A batch holds consecutive samples of one beam: close it before a gap or a new beam.
+                if let Some(pb) = &out_batch {
+                    if !acc.abscissa_m.is_empty() && (gap || (acc.station, acc.beam) != ids) {
+                        pb.publish(std::mem::take(&mut acc)).map_err(|e| anyhow::anyhow!("publish batch: {e:?}"))?;
+                    }
+                }
+                let Some(r) = r else {
+                    skipped += 1;
+                    next_sample += period_ns;
+                    continue;
+                };
+                if let Some(pb) = &out_batch {
+                    if acc.abscissa_m.is_empty() {
+                        acc.header = Header::at(next_sample, &format!("deflector/{}", ids.0));
+                        acc.station = ids.0;
+                        acc.beam = ids.1;
+                        acc.sample_period_s = period_ns as f64 * 1e-9;
+                    }
+                    acc.abscissa_m.push(r.value_m);
+                    acc.signal_strength.push(r.signal_strength as f32);
+                    acc.beam_broken.push(r.beam_broken);
+                    if acc.abscissa_m.len() >= batch {
+                        pb.publish(std::mem::take(&mut acc)).map_err(|e| anyhow::anyhow!("publish batch: {e:?}"))?;
+                    }
+                } else {
+                    out.publish(abscissa(next_sample, ids, &r, 0))
+                        .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::ABSCISSA))?;
+                }
+                published += 1;
                 next_sample += period_ns;
             }
         }

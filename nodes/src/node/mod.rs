@@ -18,6 +18,7 @@
 pub mod deflector;
 pub mod environment;
 pub mod interferometer;
+pub mod latch;
 pub mod machine;
 pub mod recorder;
 pub mod sequencer;

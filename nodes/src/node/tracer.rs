@@ -5,14 +5,13 @@
 //! Parameters: `backend` (sim), `latch_timeout_s` (1.0), and for the sim backend `machine`,
 //! `plan` (a tracer plan: its stations are the tracer's positions), `seed`.
 
+use super::latch::PendingTriggers;
 use super::{check_backend, TICK};
 use crate::backend::sim::{SimTracer, SimWorld};
-use crate::backend::{TracerBackend, Truth};
-use crate::convert::info_to_msg;
-use crate::pairing::trigger_type;
+use crate::backend::TracerBackend;
+use crate::convert::{self, info_to_msg};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::Result;
-use nalgebra::{Point3, Vector3};
 use volcal_msgs::msg::{InterferometerInfo, ReflectorTruth, TracerRange, Trigger};
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
@@ -37,53 +36,33 @@ pub fn run_with<B: TracerBackend>(node: &mut RosNode, mut backend: B) -> Result<
     let out = node.publisher::<TracerRange>(topics::TRACER_RANGE, qos::data())?;
     let info = node.publisher::<InterferometerInfo>(topics::INTERFEROMETER_INFO, qos::latched())?;
     info.publish(info_to_msg(&backend.info(), now_ns())).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let mut pending: Vec<(Trigger, i64)> = Vec::new();
+    let mut pending = PendingTriggers::new(Trigger::KIND_RANGE, latch_timeout);
     let mut published = 0u64;
     while !shutdown::requested() {
         node.wait(TICK);
         if let Some(refl) = &truth {
             while let Ok(Some((r, _))) = refl.take() {
-                backend.truth(&Truth::Reflector {
-                    stamp_ns: r.header.stamp.to_nanos(),
-                    position_id: r.position_id,
-                    settled: r.settled,
-                    actual: Point3::from(r.actual_m),
-                    velocity: Vector3::from(r.velocity_mps),
-                });
-            }
-        }
-        while let Ok(Some((t, _))) = triggers.take() {
-            if t.kind == Trigger::KIND_RANGE
-                && (t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE)
-            {
-                pending.push((t, now_ns()));
+                backend.truth(&convert::reflector_truth(&r));
             }
         }
         let now = now_ns();
-        let mut keep = Vec::new();
-        for (t, received) in pending.drain(..) {
+        pending.take_from(&triggers, now);
+        pending.service(now, |t| {
             backend.new_station(t.station);
-            match backend.read(now, Some(t.point), Some(t.position_id))? {
-                Some(r) => {
-                    out.publish(TracerRange {
-                        header: Header::at(now, &format!("tracer/{}", t.station)),
-                        station: t.station,
-                        path: t.line,
-                        range_m: r.value_m,
-                        signal_strength: r.signal_strength,
-                        beam_broken: r.beam_broken,
-                        trigger_id: t.trigger_id,
-                    })
-                    .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::TRACER_RANGE))?;
-                    published += 1;
-                }
-                None if now - received > latch_timeout => {
-                    log::warn!("trigger {}: no range possible within the latch timeout; dropped", t.trigger_id)
-                }
-                None => keep.push((t, received)),
-            }
-        }
-        pending = keep;
+            let Some(r) = backend.read(now, Some(t.point), Some(t.position_id))? else { return Ok(false) };
+            out.publish(TracerRange {
+                header: Header::at(now, &format!("tracer/{}", t.station)),
+                station: t.station,
+                path: t.line,
+                range_m: r.value_m,
+                signal_strength: r.signal_strength,
+                beam_broken: r.beam_broken,
+                trigger_id: t.trigger_id,
+            })
+            .map_err(|e| anyhow::anyhow!("publish {}: {e:?}", topics::TRACER_RANGE))?;
+            published += 1;
+            Ok(true)
+        })?;
     }
     log::info!("published {published} ranges");
     Ok(())
