@@ -137,7 +137,10 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     }
     log::info!("published {published} readings");
     if skipped > 0 {
-        log::warn!("{skipped} free-running samples could not be read within {} s", max_lag_ns as f64 * 1e-9);
+        log::warn!(
+            "{skipped} free-running samples were not readable within {} s (no beam, or no reflector position, yet for their instant)",
+            max_lag_ns as f64 * 1e-9
+        );
     }
     Ok(())
 }
