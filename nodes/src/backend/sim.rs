@@ -72,10 +72,13 @@ fn info_of(i: &volcal_sim::Interferometer, instrument: &str) -> InstrumentInfo {
     }
 }
 
+/// One reflector truth sample: stamp, motion id, at rest, actual position, velocity.
+type ReflectorSample = (i64, u64, bool, Point3<f64>, Vector3<f64>);
+
 /// Recent reflector truth samples, to find the one for a position or interpolate in time.
 #[derive(Default)]
 struct ReflectorHistory {
-    samples: VecDeque<(i64, u64, bool, Point3<f64>, Vector3<f64>)>,
+    samples: VecDeque<ReflectorSample>,
 }
 
 impl ReflectorHistory {

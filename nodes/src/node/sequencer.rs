@@ -448,7 +448,7 @@ impl<'a> Link<'a> {
                 self.trigger_reading(trigger_type::POINT, Trigger::KIND_RANGE, task.station, task.path, k as u32, pos)?;
             acquired.push(id);
             self.done += 1;
-            if self.done % 50 == 0 {
+            if self.done.is_multiple_of(50) {
                 self.status(SequencerStatus::RUNNING, task.station, task.path, "")?;
             }
         }
