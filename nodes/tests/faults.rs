@@ -114,7 +114,7 @@ fn duplicated_and_out_of_order_messages_do_not_corrupt_the_pairing() {
     let lease = domain::lease().unwrap();
     let dir = volcal_tests::scratch("fault-duplicates");
     let bag = dir.join("dups");
-    let yaml = "launch:\n  - arg: {name: bag}\n  - node: {exec: volcal_recorder, name: recorder, on_exit: shutdown, param: [{name: bag, value: \"$(var bag)\"}]}\n";
+    let yaml = "launch:\n  - arg: {name: bag}\n  - set_env: {name: ROS_LOCALHOST_ONLY, value: \"1\"}\n  - node: {exec: volcal_recorder, name: recorder, on_exit: shutdown, param: [{name: bag, value: \"$(var bag)\"}]}\n";
     let file = dir.join("recorder.yaml");
     std::fs::write(&file, yaml).unwrap();
     let mut l = Launch::start(&file, Some(&bag), lease.id, &[]);

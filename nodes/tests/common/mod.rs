@@ -41,6 +41,8 @@ impl Launch {
         if let Some(b) = bag {
             cmd.arg("--bag").arg(b);
         }
+        // Loopback only, whatever the launch file says.
+        cmd.env("ROS_LOCALHOST_ONLY", "1");
         cmd.args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).stdin(Stdio::null());
         let mut child = cmd.spawn().expect("cannot start volcal launch");
         let lines = Arc::new(Mutex::new(Vec::new()));
