@@ -128,7 +128,7 @@ enum Command {
         #[command(subcommand)]
         command: BenchCommand,
     },
-    /// Run the whole offline chain on the built-in example and compare with the truth.
+    /// Run the whole chain on the built-in example (offline, then through the ROS 2 node set: launch, record, replay, solve) and compare with the truth.
     #[command(after_help = "Example:\n  volcal demo")]
     Demo {
         /// Keep the files here instead of a temporary directory.
@@ -146,6 +146,7 @@ enum BenchCommand {
         /// Sampling rate of the interferometer and the machine, Hz.
         #[arg(long, default_value_t = 1000.0)]
         rate: f64,
+        /// Seconds.
         #[arg(long, default_value_t = 60.0)]
         duration: f64,
         /// Samples per message (1: one message per sample; more: the batched message types).
