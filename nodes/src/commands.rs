@@ -54,7 +54,11 @@ pub fn sim_config(machine: &Machine, plan: Plan, seed: u64) -> SimConfig {
     let s = &machine.file.simulation;
     // The truth has its own random stream so that changing the noise does not change it.
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5452_5554_485f_5345);
-    let truth = random_truth(machine.truth_layout(), &s.truth, &mut rng);
+    let truth = match s.truth_preset {
+        // Validated by the machine file: the only preset is the paper's machine.
+        Some(_) => volcal_sim::paper::truth(),
+        None => random_truth(machine.truth_layout(), &s.truth, &mut rng),
+    };
     SimConfig {
         machine: VirtualMachine { truth, repeatability_m: s.repeatability_m, centring_m: s.centring_m },
         interferometer: s.interferometer.clone(),
@@ -222,13 +226,18 @@ pub fn solve_cmd(campaign_path: &Path, machine_path: &Path, out: &Path) -> Resul
     let machine = Machine::load(machine_path)?;
     let campaign = load_campaign(campaign_path)?;
     let pb = spinner(&format!("solving {} readings", campaign.readings.len()));
-    let solved = solve_campaign(
-        &campaign,
-        machine,
-        &campaign_path.display().to_string(),
-        provenance(campaign_path, machine_path)?,
-    )?;
+    let prov = provenance(campaign_path, machine_path)?;
+    let t0 = std::time::Instant::now();
+    let solved = solve_campaign(&campaign, machine, &campaign_path.display().to_string(), prov)?;
+    let dt = t0.elapsed();
     pb.finish_and_clear();
+    eprintln!(
+        "solved {} readings, {} parameters in {:.1} ms ({} iterations)",
+        solved.prepared.obs.len(),
+        solved.machine.layout.n_params,
+        dt.as_secs_f64() * 1e3,
+        solved.solution.iterations
+    );
     solved.file.write(out)?;
     print!("{}", summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign)));
     println!("\nwrote model to {}", out.display());
