@@ -10,10 +10,10 @@ use volcal::campaign::{prepare, Campaign, Observations};
 use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis};
 use volcal::{solve, ErrorModel};
 use volcal_nodes::commands::sim_config;
-use volcal_nodes::machine::{Machine, DEMO_MACHINE};
+use volcal_nodes::machine::Machine;
 use volcal_sim::effects::{from_spec, EffectContext};
 use volcal_sim::simulate::InjectedTruth;
-use volcal_sim::{simulate, Acquisition, Injection, Plan, SimConfig};
+use volcal_sim::{simulate, Injection, Plan, SimConfig};
 
 /// A concealed-effect scenario: which effect, and how its strength scales.
 #[derive(Clone, Debug)]
@@ -52,38 +52,25 @@ pub fn unmodelled() -> Scenario {
     Scenario { id: "unmodelled_bump", spec: "unmodelled_bump:amplitude_m={a}", reference: 1.5e-6, air_rate_per_unit: 0.0, precision: false }
 }
 
-/// The machine of the diagnosis campaigns: the demo CMM with 8-interval B-splines; the
-/// precision variant has nanometre noise.
+/// The machine of the diagnosis campaigns (`launch_configs/machines/diagnosis_cmm*.yaml`):
+/// the demo CMM with 8-interval B-splines, recording the air; the precision variant has
+/// nanometre noise.
 pub fn machine(precision: bool) -> Machine {
-    let mut text = DEMO_MACHINE.replace("intervals: 12", "intervals: 8");
-    if precision {
-        text = text
-            .replace("noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7", "noise: {interferometer_m: 2.0e-9, repeatability_m: 5.0e-9")
-            .replace("repeatability_m: 2.0e-7\n", "repeatability_m: 5.0e-9\n")
-            .replace("interferometer: {noise_m: 5.0e-8", "interferometer: {noise_m: 2.0e-9")
-            .replace("centring_m: 1.0e-6", "centring_m: 1.0e-7");
-    }
-    Machine::parse(&text).unwrap()
+    let name = if precision { "diagnosis_cmm_precision.yaml" } else { "diagnosis_cmm.yaml" };
+    Machine::load(&crate::repo_root().join("launch_configs/machines").join(name)).unwrap()
 }
 
-/// The campaign plan: 3 positions x 16 beams x 30 points, out and back on the fly at three
-/// speeds, so that latency (proportional to speed) and reversal (not) can be told apart.
+/// The campaign plan (`launch_configs/plans/diagnosis.yaml`): 3 positions x 16 beams x 30
+/// points, out and back on the fly at three speeds, so that latency (proportional to speed)
+/// and reversal (not) can be told apart.
 pub fn plan() -> Plan {
-    Plan {
-        directions_per_station: 16,
-        points_per_beam: 30,
-        bidirectional: true,
-        acquisition: Acquisition::OnTheFly { speed_mps: 0.05 },
-        speeds_mps: vec![0.02, 0.05, 0.1],
-        ..Plan::patent_example()
-    }
+    volcal_nodes::commands::load_plan(Some(&crate::repo_root().join("launch_configs/plans/diagnosis.yaml"))).unwrap()
 }
 
 /// A simulated campaign of a scenario at strength `a` (0: the clean campaign of the same seed).
 pub fn campaign(sc: &Scenario, a: f64, seed: u64) -> (Machine, SimConfig, Campaign, Vec<InjectedTruth>) {
     let m = machine(sc.precision);
     let mut cfg = sim_config(&m, plan(), 1000 + seed);
-    cfg.environment.record_air = true;
     cfg.environment.air_temp_rate_k_per_h = sc.air_rate_per_unit * a;
     let ctx = EffectContext { air_start: cfg.environment.air, wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation, travel: m.layout.travel };
     let injections: Vec<Box<dyn Injection>> = if a == 0.0 {
@@ -145,9 +132,24 @@ pub fn snr_raw(sc: &Scenario, a: f64, seed: u64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The strength that gives SNR 3 (the effects are linear in their strength at these sizes).
-pub fn strength_for_snr3(sc: &Scenario) -> f64 {
-    sc.reference * 3.0 / snr(sc, sc.reference, 0)
+/// The smallest strength that gives an SNR of at least 3 in every seed of `seeds`, and the
+/// smallest SNR it gives (at the seed where it is smallest). The signatures are nearly linear in
+/// the strength; a few corrections at the worst seed take care of the rest.
+pub fn strength_for_snr3(sc: &Scenario, seeds: std::ops::Range<u64>) -> (f64, f64) {
+    let (worst, min) = seeds
+        .map(|s| (s, snr(sc, sc.reference, s)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("at least one seed");
+    let mut a = sc.reference * 3.0 / min;
+    let mut at = snr(sc, a, worst);
+    for _ in 0..4 {
+        if at >= 3.0 {
+            break;
+        }
+        a *= 3.0 / at * 1.001;
+        at = snr(sc, a, worst);
+    }
+    (a, at)
 }
 
 /// Diagnosis options for a campaign made with `cfg`.
@@ -158,13 +160,7 @@ pub fn options(m: &Machine, cfg: &SimConfig) -> DiagnoseOptions {
 /// RMS volumetric difference between a model and the truth after removing the gauge freedom
 /// ([`crate::gauge_distance`]), over a grid and the campaign's probe offsets.
 pub fn map_error(model: &ErrorModel, truth: &ErrorModel, g: volcal::Gauge, obs: &Observations) -> f64 {
-    let mut offsets: Vec<nalgebra::Vector3<f64>> = Vec::new();
-    for p in &obs.p {
-        if !offsets.iter().any(|q| (q - p).norm() < 1e-9) {
-            offsets.push(*p);
-        }
-    }
-    crate::gauge_distance(model, truth, g, &offsets, 0.2).1
+    crate::gauge_distance(model, truth, g, &distinct_probes(obs), 0.2).1
 }
 
 /// One diagnosis run of a scenario at strength `a`.
@@ -188,12 +184,7 @@ pub fn run(sc: &Scenario, a: f64, seed: u64) -> Run {
     let clean_obs = observations(&m, &clean);
     let rms_clean_m = solve(&m.layout, &clean_obs, &m.solve_options(), &[]).unwrap().stats.rms_m;
     let truth_model = cfg.machine.truth.clone();
-    let mut probes: Vec<nalgebra::Vector3<f64>> = Vec::new();
-    for p in &obs.p {
-        if !probes.iter().any(|q| (q - p).norm() < 1e-9) {
-            probes.push(*p);
-        }
-    }
+    let probes = distinct_probes(&obs);
     Run {
         map_error_before: map_error(&d.before.model, &truth_model, m.gauge, &obs),
         map_error_after: map_error(&d.after.model, &truth_model, m.gauge, &obs),
@@ -223,7 +214,60 @@ pub struct Check {
 }
 
 fn truth_param(t: &[InjectedTruth], id: &str, name: &str) -> f64 {
-    t.iter().find(|e| e.id == id).and_then(|e| e.parameters.iter().find(|p| p.0 == name)).map(|p| p.1).unwrap_or_else(|| panic!("no truth {id}.{name}"))
+    t.iter()
+        .find(|e| e.id == id)
+        .and_then(|e| e.parameters.iter().find(|p| p.0 == name))
+        .map(|p| p.1)
+        .unwrap_or_else(|| panic!("no truth {id}.{name}"))
+}
+
+/// The primary parameters of an injected effect as the diagnosis names them, with their true
+/// values: those the injection made non-zero. `found` are the names the diagnosis reported
+/// (setup drift is per station), `probes` the distinct probe offsets in order of first
+/// appearance in the prepared readings (the diagnosis's probe numbering).
+pub fn primary_parameters(
+    id: &str,
+    truth: &[InjectedTruth],
+    found: &[String],
+    probes: &[nalgebra::Vector3<f64>],
+) -> Vec<(String, f64)> {
+    let t = |name: &str| truth_param(truth, id, name);
+    match id {
+        "air_refraction" => vec![("uncompensated_fraction".into(), t("uncompensated_fraction"))],
+        "material_expansion" => {
+            ["alpha_x_per_k", "alpha_y_per_k", "alpha_z_per_k"].iter().map(|n| (n.to_string(), t(n))).collect()
+        }
+        "setup_drift" => found
+            .iter()
+            .filter_map(|n| {
+                let c = ["vx", "vy", "vz"].iter().position(|c| n.ends_with(&format!("_{c}_m_per_s")))?;
+                let v = t(["vx_m_per_s", "vy_m_per_s", "vz_m_per_s"][c]);
+                (v != 0.0).then(|| (n.clone(), v))
+            })
+            .collect(),
+        "latency" => vec![("latency_s".into(), t("latency_s"))],
+        "reversal" => vec![("backlash_x_m".into(), t("backlash_x_m"))],
+        "periodic_pitch" | "cyclic_nonlinearity" => vec![("amplitude_m".into(), t("amplitude_m"))],
+        "nonrigid" => vec![("ez:P1(x)P2(y)".into(), t("ez:P1(x)P2(y)"))],
+        "probe_offset" => {
+            let declared = nalgebra::Vector3::new(0.0, 0.12, -0.10);
+            let k = probes.iter().position(|p| (p - declared).norm() < 1e-9).expect("the displaced probe is in the plan");
+            vec![(format!("probe{k}_dz_m"), t("dz_m"))]
+        }
+        "beam_break" => vec![("step_m".into(), t("step_m"))],
+        other => panic!("no primary parameters for {other}"),
+    }
+}
+
+/// Distinct probe offsets in order of first appearance.
+pub fn distinct_probes(obs: &Observations) -> Vec<nalgebra::Vector3<f64>> {
+    let mut probes: Vec<nalgebra::Vector3<f64>> = Vec::new();
+    for p in &obs.p {
+        if !probes.iter().any(|q| (q - p).norm() < 1e-9) {
+            probes.push(*p);
+        }
+    }
+    probes
 }
 
 /// Compares a run of scenario `sc` with its truth.
@@ -231,33 +275,8 @@ pub fn check(sc: &Scenario, r: &Run) -> Check {
     let d = &r.diagnosis;
     let found = d.effects.iter().find(|e| e.id == sc.id);
     let truth = |name: &str| truth_param(&r.truth, sc.id, name);
-    // (found parameter name, truth value) of the primary parameters.
-    let primary: Vec<(String, f64)> = match sc.id {
-        "air_refraction" => vec![("uncompensated_fraction".into(), truth("uncompensated_fraction"))],
-        "material_expansion" => ["alpha_x_per_k", "alpha_y_per_k", "alpha_z_per_k"].iter().map(|n| (n.to_string(), truth(n))).collect(),
-        "setup_drift" => {
-            let names: Vec<String> = found.map(|f| f.parameters.iter().map(|p| p.0.clone()).collect()).unwrap_or_default();
-            names
-                .into_iter()
-                .filter_map(|n| {
-                    let c = ["vx", "vy", "vz"].iter().position(|c| n.ends_with(&format!("_{c}_m_per_s")))?;
-                    let t = truth(["vx_m_per_s", "vy_m_per_s", "vz_m_per_s"][c]);
-                    (t != 0.0).then_some((n, t))
-                })
-                .collect()
-        }
-        "latency" => vec![("latency_s".into(), truth("latency_s"))],
-        "reversal" => vec![("backlash_x_m".into(), truth("backlash_x_m"))],
-        "periodic_pitch" | "cyclic_nonlinearity" => vec![("amplitude_m".into(), truth("amplitude_m"))],
-        "nonrigid" => vec![("ez:P1(x)P2(y)".into(), truth("ez:P1(x)P2(y)"))],
-        "probe_offset" => {
-            let declared = nalgebra::Vector3::new(0.0, 0.12, -0.10);
-            let k = r.probes.iter().position(|p| (p - declared).norm() < 1e-9).expect("the displaced probe is in the plan");
-            vec![(format!("probe{k}_dz_m"), truth("dz_m"))]
-        }
-        "beam_break" => vec![("step_m".into(), truth("step_m"))],
-        other => panic!("no check for {other}"),
-    };
+    let names: Vec<String> = found.map(|f| f.parameters.iter().map(|p| p.0.clone()).collect()).unwrap_or_default();
+    let primary = primary_parameters(sc.id, &r.truth, &names, &r.probes);
     let z = match found {
         Some(f) => primary
             .iter()

@@ -205,16 +205,25 @@ impl Columns {
 
 /// Writes a campaign as CSV (full precision; optional columns only when some reading has them).
 pub fn write(path: &Path, c: &Campaign) -> Result<()> {
+    write_with_notes(path, c, &[])
+}
+
+/// [`write`] with `notes` as comment lines of the header (e.g. `injected: latency:...`; readers
+/// ignore them).
+pub fn write_with_notes(path: &Path, c: &Campaign, notes: &[String]) -> Result<()> {
     let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut w = std::io::BufWriter::new(f);
-    write_to(&mut w, c).with_context(|| format!("writing {}", path.display()))?;
+    write_to(&mut w, c, notes).with_context(|| format!("writing {}", path.display()))?;
     w.flush()?;
     Ok(())
 }
 
 /// Writes a campaign to any writer.
-pub fn write_to(w: &mut impl Write, c: &Campaign) -> Result<()> {
+pub fn write_to(w: &mut impl Write, c: &Campaign, notes: &[String]) -> Result<()> {
     writeln!(w, "# volcal campaign v1")?;
+    for n in notes {
+        writeln!(w, "# {n}")?;
+    }
     writeln!(w, "# wavelength_vac_m: {}", c.meta.wavelength_vac_m)?;
     match c.meta.compensation {
         Compensation::Compensated => writeln!(w, "# readings: compensated")?,
@@ -325,7 +334,7 @@ mod tests {
     fn round_trip_is_exact() {
         let c = sample();
         let mut buf = Vec::new();
-        write_to(&mut buf, &c).unwrap();
+        write_to(&mut buf, &c, &[]).unwrap();
         let back = read_from(&buf[..], "mem").unwrap().campaign;
         assert_eq!(back.meta, c.meta);
         for (a, b) in back.readings.iter().zip(&c.readings) {

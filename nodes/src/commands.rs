@@ -14,7 +14,8 @@ use volcal::campaign::{prepare, Campaign, Prepared};
 use volcal::estimator::Solution;
 use volcal::predict;
 use volcal::{gauge, solve, Axis, ErrorFunction, ErrorModel};
-use volcal_sim::{random_truth, simulate, Plan, SimConfig, VirtualMachine};
+use volcal_sim::effects::{from_spec, EffectContext};
+use volcal_sim::{random_truth, simulate, Injection, Plan, SimConfig, VirtualMachine};
 
 /// A progress spinner on stderr (hidden when stderr is not a terminal).
 pub fn spinner(msg: &str) -> indicatif::ProgressBar {
@@ -69,6 +70,19 @@ pub fn sim_config(machine: &Machine, plan: Plan, seed: u64) -> SimConfig {
     }
 }
 
+/// Options of `volcal simulate` beyond the machine, plan and seed.
+#[derive(Clone, Debug, Default)]
+pub struct SimulateOptions {
+    /// Effects to inject (`id[:key=value,...]`, `+` joins several).
+    pub inject: Vec<String>,
+    /// Keep the injections out of the campaign file.
+    pub conceal: bool,
+    /// Air temperature drift, K/h (default: the machine file's).
+    pub air_rate_k_per_h: Option<f64>,
+    /// Record the air with every reading.
+    pub record_air: bool,
+}
+
 /// `volcal simulate`.
 pub fn simulate_cmd(
     machine_path: &Path,
@@ -76,15 +90,39 @@ pub fn simulate_cmd(
     seed: u64,
     out: &Path,
     truth: Option<&Path>,
+    opts: &SimulateOptions,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
     let plan = load_plan(plan_path)?;
-    let cfg = sim_config(&machine, plan, seed);
+    let mut cfg = sim_config(&machine, plan, seed);
+    if let Some(r) = opts.air_rate_k_per_h {
+        anyhow::ensure!(r.is_finite(), "--air-rate must be a number of kelvin per hour");
+        cfg.environment.air_temp_rate_k_per_h = r;
+    }
+    cfg.environment.record_air |= opts.record_air;
+    let ctx = EffectContext {
+        air_start: cfg.environment.air,
+        wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
+        air_equation: cfg.interferometer.air_equation,
+        travel: machine.layout.travel,
+    };
+    let specs: Vec<&str> =
+        opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
+    let injections: Vec<Box<dyn Injection>> = specs
+        .iter()
+        .map(|s| from_spec(s, &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}")))
+        .collect::<Result<_>>()?;
+    let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");
-    let sim = simulate(&cfg, &[], seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let sim = simulate(&cfg, &refs, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
     pb.finish_and_clear();
-    campaign_csv::write(out, &sim.campaign)?;
+    let notes: Vec<String> =
+        if opts.conceal { Vec::new() } else { specs.iter().map(|s| format!("injected: {s}")).collect() };
+    campaign_csv::write_with_notes(out, &sim.campaign, &notes)?;
     eprintln!("wrote {} readings to {}", sim.campaign.readings.len(), out.display());
+    for i in &sim.truth.injected {
+        eprintln!("injected {}: {}", i.id, i.description);
+    }
     if let Some(t) = truth {
         TruthFile::new(&sim.truth, seed, machine.gauge).write(t)?;
         eprintln!("wrote simulation truth to {}", t.display());
@@ -476,7 +514,7 @@ pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
     let truth = dir.join("truth.json");
     let model = dir.join("model.json");
     println!("volcal demo: fixed-beam campaign (patent EP 1 990 605 example: 3 positions x 25 beams x 100 points) on a simulated 1.0 x 0.8 x 0.6 m CMM\nworking directory: {}\n", dir.display());
-    simulate_cmd(&machine_path, None, seed, &campaign, Some(&truth))?;
+    simulate_cmd(&machine_path, None, seed, &campaign, Some(&truth), &SimulateOptions::default())?;
     let (solved, _) = solve_cmd(&campaign, &machine_path, &model)?;
     let t = TruthFile::load(&truth)?;
     let (tm, _) = t.model.to_model()?;

@@ -7,7 +7,7 @@
 //! - [`machine`]: the machine file (YAML).
 //! - [`campaign_csv`]: the campaign interchange format.
 //! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
-//! - [`commands`]: the subcommands as functions.
+//! - [`commands`]: the subcommands as functions; [`diagnosis`]: `volcal diagnose`.
 //! - [`report`]: text summaries.
 //! - The ROS 2 node set: [`ros`] (plumbing), [`node`] (the nodes), [`backend`] (instrument
 //!   backends, simulated or hardware), [`pairing`], [`centring`], [`bag`] and [`bag_campaign`]
@@ -25,6 +25,7 @@ pub mod centring;
 pub mod commands;
 pub mod convert;
 pub mod demo_chain;
+pub mod diagnosis;
 pub mod launch;
 pub mod launch_cmd;
 pub mod machine;

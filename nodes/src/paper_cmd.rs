@@ -118,7 +118,7 @@ pub fn paper_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         "volcal paper: the laser-tracer scenario of Han et al. (2021) on a simulated FYXZ CMM (travel X 0..700, Y -500..0, Z -700..0 mm; truth with the ranges of Table 2)\nworking directory: {}\n",
         dir.display()
     );
-    simulate_cmd(&machine_path, Some(&plan_path), seed, &campaign_path, Some(&truth_path))?;
+    simulate_cmd(&machine_path, Some(&plan_path), seed, &campaign_path, Some(&truth_path), &Default::default())?;
 
     // Solve from nominal stations: the plan's, displaced as if known only to 50 mm.
     let machine = Machine::load(&machine_path)?;

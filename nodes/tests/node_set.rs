@@ -104,7 +104,7 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     // The same plan offline.
     let csv = dir.join("short.csv");
     let model_off_path = dir.join("model_offline.json");
-    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None).unwrap();
+    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None, &Default::default()).unwrap();
     let (solved_off, _) = solve_cmd(&csv, &machine_path, &model_off_path).unwrap();
 
     let dds = model_file::load(&model_path).unwrap();
@@ -157,7 +157,7 @@ fn tracer_campaign_over_dds_records_ranges_that_solve_like_offline() {
     assert!(campaign.readings.iter().all(|r| r.kind == volcal::campaign::ObsKind::Range));
     let (dds, _) = solve_cmd(&bag, &machine_path, &dir.join("model_dds.json")).unwrap();
     let csv = dir.join("tracer.csv");
-    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None).unwrap();
+    simulate_cmd(&machine_path, Some(&plan_path), 1, &csv, None, &Default::default()).unwrap();
     let (off, _) = solve_cmd(&csv, &machine_path, &dir.join("model_offline.json")).unwrap();
     let (rd, ro) = (dds.file.residuals.unwrap(), off.file.residuals.unwrap());
     eprintln!(

@@ -13,7 +13,7 @@ fn main() {
     for sc in &list {
         let t0 = std::time::Instant::now();
         let snr_ref = diagnosis::snr(sc, sc.reference, 0);
-        let a = sc.reference * 3.0 / snr_ref;
+        let a = diagnosis::strength_for_snr3(sc, first..first + seeds).0;
         let raw = diagnosis::snr_raw(sc, sc.reference, 0);
         println!(
             "{}: SNR {:.2} (raw {:.2}) at {:.3e}; SNR 3 at {:.3e}, raw SNR 3 at {:.3e} ({:.1} s)",

@@ -14,7 +14,7 @@ fn python_recomputes_the_tracer_residuals() {
     let machine = root.join("launch_configs/machines/paper_cmm.yaml");
     let plan = root.join("launch_configs/plans/paper_tracer.yaml");
     let (campaign, truth, model) = (dir.join("campaign.csv"), dir.join("truth.json"), dir.join("model.json"));
-    commands::simulate_cmd(&machine, Some(&plan), 3, &campaign, Some(&truth)).unwrap();
+    commands::simulate_cmd(&machine, Some(&plan), 3, &campaign, Some(&truth), &Default::default()).unwrap();
     commands::solve_cmd(&campaign, &machine, &model).unwrap();
     let out = Command::new(py)
         .arg(root.join("tests/py/check_tracer_model.py"))

@@ -548,14 +548,26 @@ pub fn cyclic(obs: &Observations, geo: &Geometry) -> CyclicEffect {
 
 
 /// Amplitude of the cyclic error and its standard uncertainty from the per-beam sine and cosine
-/// coefficients (name, value, uncertainty): the mean of `s^2 + c^2` debiased by their noise.
+/// coefficients (name, value, uncertainty): the mean over beams of `s^2 + c^2` debiased by
+/// their noise. The uncertainty comes from the scatter of the beams' values (it includes what
+/// the coefficients' own uncertainties miss, such as the phase jitter of the machine's
+/// repeatability), and is never below the propagated one.
 pub fn cyclic_amplitude(coeffs: &[(String, f64, f64)]) -> (f64, f64) {
-    let (mut a2, mut v, mut nb) = (0.0f64, 0.0f64, 0.0f64);
-    for pair in coeffs.chunks(2).filter(|p| p.len() == 2) {
-        a2 += pair[0].1.powi(2) + pair[1].1.powi(2) - pair[0].2.powi(2) - pair[1].2.powi(2);
-        v += pair[0].2.powi(2) + pair[1].2.powi(2);
-        nb += 1.0;
-    }
-    let amp = (a2 / nb.max(1.0)).max(0.0).sqrt();
-    (amp, (v / nb.max(1.0) / 2.0 / nb.max(1.0)).sqrt())
+    let per_beam: Vec<(f64, f64)> = coeffs
+        .chunks(2)
+        .filter(|p| p.len() == 2)
+        .map(|p| (p[0].1.powi(2) + p[1].1.powi(2) - p[0].2.powi(2) - p[1].2.powi(2), (p[0].2.powi(2) + p[1].2.powi(2)) / 2.0))
+        .collect();
+    let nb = per_beam.len().max(1) as f64;
+    let a2 = per_beam.iter().map(|b| b.0).sum::<f64>() / nb;
+    let amp = a2.max(0.0).sqrt();
+    let var_coeff = per_beam.iter().map(|b| b.1).sum::<f64>() / nb;
+    let propagated = (var_coeff * (1.0 + var_coeff / amp.powi(2).max(1e-300)) / nb).sqrt();
+    let scatter = if per_beam.len() > 1 {
+        let var_a2 = per_beam.iter().map(|b| (b.0 - a2).powi(2)).sum::<f64>() / (nb - 1.0);
+        (var_a2 / nb).sqrt() / (2.0 * amp.max(1e-300))
+    } else {
+        0.0
+    };
+    (amp, propagated.max(scatter))
 }
