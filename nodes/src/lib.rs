@@ -9,6 +9,7 @@
 //! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
 //! - [`commands`]: the subcommands as functions.
 //! - [`report`]: text summaries.
+//! - [`viz`]: Rerun visualisation (recorded and live).
 
 pub mod bag_campaign;
 pub mod campaign_csv;
@@ -17,6 +18,7 @@ pub mod machine;
 pub mod model_file;
 pub mod report;
 pub mod truth_file;
+pub mod viz;
 
 /// `volcal <version>` for provenance records.
 pub fn software_version() -> String {

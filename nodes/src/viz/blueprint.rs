@@ -1,0 +1,89 @@
+//! Default layouts, so that the first screen answers the engineer's questions: do the beams
+//! cover the volume, is the fit good, where are the residuals, how large are the errors. The
+//! views are building blocks that other commands (diagnosis) combine with their own roots.
+
+use super::error_functions::plot_title;
+use super::layout::{Container, Layout, Node, View};
+use super::paths;
+use rerun::blueprint::components::PanelState;
+use rerun::external::re_sdk_types::blueprint::archetypes as bp;
+use volcal::{Axis, Motion, Travel};
+
+/// The 3D scene: volume, stations, beams and points, the volumetric map, live state, looked
+/// at from the front left, above. Entities in `hide` (e.g. the actual points, which coincide
+/// with the indicated ones at this scale) stay in the recording but out of the view.
+pub fn scene_view(title: &str, travel: &Travel, hide: impl IntoIterator<Item = String>) -> View {
+    let mut q: Vec<String> =
+        [paths::MACHINE, paths::STATIONS, "map", paths::LIVE].iter().map(|r| format!("+ /{r}/**")).collect();
+    q.extend(hide.into_iter().map(|p| format!("- /{p}")));
+    let c = travel.centre();
+    let d = (travel.max_corner() - travel.min_corner()).norm();
+    let eye = c + nalgebra::Vector3::new(-0.35, -0.8, 0.55) * d;
+    View::spatial3d(title, q).property(
+        "EyeControls3D",
+        &bp::EyeControls3D::new()
+            .with_position([eye.x as f32, eye.y as f32, eye.z as f32])
+            .with_look_target([c.x as f32, c.y as f32, c.z as f32])
+            .with_eye_up([0.0f32, 0.0, 1.0]),
+    )
+}
+
+/// Per-reading series under `root` (residuals, or a diagnosis root), without legend (one
+/// series per line; the colour is the station's).
+pub fn series_view(title: &str, root: &str) -> View {
+    View::time_series(title, [format!("+ /{root}/**")]).without_legend()
+}
+
+/// Per-line RMS bar charts under `root`.
+pub fn rms_view(title: &str, root: &str) -> View {
+    View::bar_chart(title, [format!("+ /{root}/**")]).without_legend()
+}
+
+/// One plot per axis and kind: translations (µm) and rotations with squareness (µrad); the
+/// title names the colours, the faded lines are the U (k=2) band.
+pub fn function_views() -> Container {
+    let mut cells: Vec<Node> = Vec::new();
+    for motion in [Motion::Translation, Motion::Rotation] {
+        for a in Axis::ALL {
+            let root = paths::function_group(a, motion == Motion::Rotation);
+            cells.push(View::time_series(plot_title(a, motion), [format!("+ /{root}/**")]).without_legend().into());
+        }
+    }
+    Container::grid(3, cells).named("Error functions with U (k=2) bands")
+}
+
+/// Text summary.
+pub fn summary_view() -> View {
+    View::text_document("Summary", [format!("+ /{}", paths::SUMMARY)])
+}
+
+/// Views maximised: side panels collapsed, the timeline bar kept small with `timeline` selected.
+pub fn first_screen(root: Container, timeline: &str) -> Layout {
+    Layout {
+        root,
+        timeline: timeline.to_string(),
+        side_panels: PanelState::Collapsed,
+        time_panel: PanelState::Collapsed,
+    }
+}
+
+/// Layout of `volcal solve --rerun`. Top: the summary (the verdict) and the RMS per beam, the
+/// scene, the residuals; bottom: the error functions. The selected timeline is
+/// [`paths::POSITION_MM`], on which residuals run over the abscissa and functions over axis
+/// position. (The summary sits where a headless viewer's pointer rests, a quarter of the way
+/// in from the top left, so that screenshots show no hover tooltip; the residual plot is wide
+/// enough at 1920 px for its abscissa to be labelled every 100 mm.)
+pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout {
+    let left = Container::vertical([
+        summary_view().into(),
+        rms_view("Residual RMS per beam (µm)", paths::RESIDUAL_RMS).into(),
+    ])
+    .shares([1.2, 1.0]);
+    let top = Container::horizontal([
+        left.into(),
+        scene_view("Volume: beams, stations, volumetric error", travel, hide).into(),
+        series_view("Residuals (µm) over abscissa along each beam (mm)", paths::RESIDUALS).into(),
+    ])
+    .shares([0.85, 1.1, 1.3]);
+    first_screen(Container::vertical([top.into(), function_views().into()]).shares([1.4, 1.0]), paths::POSITION_MM)
+}
