@@ -102,6 +102,7 @@ fn run() -> anyhow::Result<ExitCode> {
             commands::simulate_cmd(&machine, plan.as_deref(), seed, &out, truth.as_deref())?
         }
         Command::Solve { campaign, machine, out, rerun } => {
+            rerun.validate()?;
             let (solved, status) = commands::solve_cmd(&campaign, &machine, &out)?;
             let name = format!("volcal solve {}", campaign.display());
             volcal_nodes::viz::solve::record(&rerun, &name, &solved.prepared.obs, &solved.solution)?;

@@ -238,3 +238,45 @@ impl Layout {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layout_is_sent_as_an_active_blueprint_with_its_views_and_properties() {
+        let layout = Layout {
+            root: Container::horizontal([
+                View::time_series("a", ["+ /a/**".to_string()]).without_legend().into(),
+                Container::grid(2, [View::bar_chart("b", ["+ /b/**".to_string()]).into()]).into(),
+            ]),
+            timeline: "position_mm".into(),
+            side_panels: PanelState::Collapsed,
+            time_panel: PanelState::Collapsed,
+        };
+        let (rec, storage) = rerun::RecordingStreamBuilder::new("volcal").memory().unwrap();
+        layout.send(&rec, "volcal").unwrap();
+        rec.flush_blocking().unwrap();
+        let msgs = storage.take();
+        let activation = msgs.iter().find_map(|m| match m {
+            LogMsg::BlueprintActivationCommand(c) => Some(c.clone()),
+            _ => None,
+        });
+        let activation = activation.expect("no activation command");
+        assert!(activation.make_active && activation.make_default);
+        let entities: Vec<String> = msgs
+            .iter()
+            .filter_map(|m| match m {
+                LogMsg::ArrowMsg(id, a) if *id == activation.blueprint_id => {
+                    rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
+                }
+                _ => None,
+            })
+            .collect();
+        let views = entities.iter().filter(|p| p.starts_with("/view/") && p.matches('/').count() == 2).count();
+        let containers = entities.iter().filter(|p| p.starts_with("/container/")).count();
+        assert_eq!((views, containers), (2, 2), "{entities:?}");
+        assert!(entities.iter().any(|p| p.ends_with("/PlotLegend")), "{entities:?}");
+        assert!(entities.iter().any(|p| p == "/viewport") && entities.iter().any(|p| p == "/time_panel"));
+    }
+}

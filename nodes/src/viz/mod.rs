@@ -64,17 +64,29 @@ impl RerunArgs {
         self.save.is_some() || self.connect.is_some() || self.spawn
     }
 
+    /// Checks the flags without opening anything (the file name, the address), so that a
+    /// command can refuse bad flags before doing its work.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(path) = &self.save {
+            if path.extension().and_then(|e| e.to_str()) != Some("rrd") {
+                bail!("--rerun {}: the recording file must end in .rrd", path.display());
+            }
+        }
+        if let Some(addr) = &self.connect {
+            grpc_sink(addr).with_context(|| format!("--rerun-connect {addr}"))?;
+        }
+        Ok(())
+    }
+
     /// Opens a recording named `name` with the default layout `layout`, or `None` when no
     /// Rerun output was asked for. Errors say which flag failed.
     pub fn open(&self, name: &str, layout: &layout::Layout) -> Result<Option<RecordingStream>> {
         if !self.enabled() {
             return Ok(None);
         }
+        self.validate()?;
         let mut sinks: Vec<Box<dyn rerun::sink::LogSink>> = Vec::new();
         if let Some(path) = &self.save {
-            if path.extension().and_then(|e| e.to_str()) != Some("rrd") {
-                bail!("--rerun {}: the recording file must end in .rrd", path.display());
-            }
             let sink = rerun::sink::FileSink::new(path)
                 .with_context(|| format!("--rerun {}: cannot create the recording file", path.display()))?;
             sinks.push(Box::new(sink));
