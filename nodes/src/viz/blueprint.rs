@@ -19,13 +19,17 @@ pub fn scene_view(title: &str, travel: &Travel, hide: impl IntoIterator<Item = S
     let c = travel.centre();
     let d = (travel.max_corner() - travel.min_corner()).norm();
     let eye = c + nalgebra::Vector3::new(-0.35, -0.8, 0.55) * d;
-    View::spatial3d(title, q).property(
-        "EyeControls3D",
-        &bp::EyeControls3D::new()
-            .with_position([eye.x as f32, eye.y as f32, eye.z as f32])
-            .with_look_target([c.x as f32, c.y as f32, c.z as f32])
-            .with_eye_up([0.0f32, 0.0, 1.0]),
-    )
+    View::spatial3d(title, q)
+        .property(
+            "EyeControls3D",
+            &bp::EyeControls3D::new()
+                .with_position([eye.x as f32, eye.y as f32, eye.z as f32])
+                .with_look_target([c.x as f32, c.y as f32, c.z as f32])
+                .with_eye_up([0.0f32, 0.0, 1.0]),
+        )
+        // The viewer's grid lies in z = 0, which is the top of a typical CMM travel; the box
+        // of the working volume is the reference instead.
+        .property("LineGrid3D", &bp::LineGrid3D::new().with_visible(false))
 }
 
 /// Per-reading series under `root` (residuals, or a diagnosis root), without legend (one

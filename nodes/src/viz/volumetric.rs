@@ -16,7 +16,7 @@ use volcal::{Axis, ErrorModel};
 pub const POINTS_ALONG_LONGEST: f64 = 7.0;
 
 /// Largest arrow as a fraction of the shortest travel.
-const ARROW_FRACTION: f64 = 0.35;
+const ARROW_FRACTION: f64 = 0.45;
 
 /// What the map shows, for the summary.
 #[derive(Clone, Copy, Debug)]
@@ -69,15 +69,15 @@ pub fn log_volumetric_map(
             .with_radii([rerun::Radius::new_ui_points(4.0)])
             .with_labels([format!("max {:.1} µm", max.magnitude_m * 1e6)]),
     )?;
-    // Scale bar below the front edge of the volume, along X.
-    let lo = travel.min_corner();
-    let bar_origin = Point3::new(lo.x, lo.y - 0.12 * travel.length(Axis::Y), lo.z);
+    // Scale bar above the front top edge of the volume, along X, clear of the map's arrows.
+    let (lo, hi) = (travel.min_corner(), travel.max_corner());
+    let bar_origin = Point3::new(lo.x, lo.y, hi.z + 0.15 * travel.length(Axis::Z));
     rec.log_static(
         paths::MAP_SCALE,
         &rerun::Arrows3D::from_vectors([f32v(&(Vector3::x() * scale_bar_m * scale))])
             .with_origins([f32p(&bar_origin)])
-            .with_colors([colors::magnitude(scale_bar_m / emax)])
-            .with_radii([rerun::Radius::new_ui_points(2.5)])
+            .with_colors([[220u8, 220, 220, 255]])
+            .with_radii([rerun::Radius::new_ui_points(3.0)])
             .with_labels([format!("scale: {} µm (arrows ×{})", fmt_um(scale_bar_m), scale)]),
     )?;
     Ok(MapInfo { max, scale, scale_bar_m, probe: *probe })
