@@ -12,24 +12,24 @@ use volcal::{Axis, Motion, Travel};
 /// The 3D scene: volume, stations, beams and points, the volumetric map, live state, looked
 /// at from the front left, above. Entities in `hide` (e.g. the actual points, which coincide
 /// with the indicated ones at this scale) stay in the recording but out of the view.
-pub fn scene_view(title: &str, travel: &Travel, hide: impl IntoIterator<Item = String>) -> View {
+pub fn scene_view(title: &str, travel: Option<&Travel>, hide: impl IntoIterator<Item = String>) -> View {
     let mut q: Vec<String> =
         [paths::MACHINE, paths::STATIONS, "map", paths::LIVE].iter().map(|r| format!("+ /{r}/**")).collect();
     q.extend(hide.into_iter().map(|p| format!("- /{p}")));
+    // The viewer's grid lies in z = 0, which is the top of a typical CMM travel; the box of
+    // the working volume is the reference instead.
+    let view = View::spatial3d(title, q).property("LineGrid3D", &bp::LineGrid3D::new().with_visible(false));
+    let Some(travel) = travel else { return view };
     let c = travel.centre();
     let d = (travel.max_corner() - travel.min_corner()).norm();
     let eye = c + nalgebra::Vector3::new(-0.35, -0.8, 0.55) * d;
-    View::spatial3d(title, q)
-        .property(
-            "EyeControls3D",
-            &bp::EyeControls3D::new()
-                .with_position([eye.x as f32, eye.y as f32, eye.z as f32])
-                .with_look_target([c.x as f32, c.y as f32, c.z as f32])
-                .with_eye_up([0.0f32, 0.0, 1.0]),
-        )
-        // The viewer's grid lies in z = 0, which is the top of a typical CMM travel; the box
-        // of the working volume is the reference instead.
-        .property("LineGrid3D", &bp::LineGrid3D::new().with_visible(false))
+    view.property(
+        "EyeControls3D",
+        &bp::EyeControls3D::new()
+            .with_position([eye.x as f32, eye.y as f32, eye.z as f32])
+            .with_look_target([c.x as f32, c.y as f32, c.z as f32])
+            .with_eye_up([0.0f32, 0.0, 1.0]),
+    )
 }
 
 /// Per-reading series under `root` (residuals, or a diagnosis root), without legend (one
@@ -85,9 +85,49 @@ pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout 
     .shares([1.2, 1.0]);
     let top = Container::horizontal([
         left.into(),
-        scene_view("Volume: beams, stations, volumetric error", travel, hide).into(),
+        scene_view("Volume: beams, stations, volumetric error", Some(travel), hide).into(),
         series_view("Residuals (µm) over abscissa along each beam (mm)", paths::RESIDUALS).into(),
     ])
     .shares([0.85, 1.1, 1.3]);
     first_screen(Container::vertical([top.into(), function_views().into()]).shares([1.4, 1.0]), paths::POSITION_MM)
+}
+
+/// Shows only the last `seconds` of [`paths::CAMPAIGN_TIME`] before the time cursor.
+pub fn last_seconds(view: View, seconds: f64) -> View {
+    use rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary, VisibleTimeRange};
+    let range = VisibleTimeRange {
+        timeline: paths::CAMPAIGN_TIME.into(),
+        range: TimeRange {
+            start: TimeRangeBoundary::CursorRelative(TimeInt((-seconds * 1e9) as i64)),
+            end: TimeRangeBoundary::AT_CURSOR,
+        },
+    };
+    view.property("VisibleTimeRanges", &bp::VisibleTimeRanges::new([range]))
+}
+
+/// Layout of the live `viz` node: the status (what is measured now, rates, running RMS) and
+/// the RMS per line on the left, the scene in the middle (stations, commanded beams, points,
+/// running line fits, the current point and the beam), the residuals of the last 30 s and the
+/// running RMS on the right. The cursor follows [`paths::CAMPAIGN_TIME`].
+pub fn live(travel: Option<&Travel>) -> Layout {
+    use super::live::{LIVE_RESIDUALS, LIVE_RESIDUAL_RMS, LIVE_RUNNING_RMS, LIVE_STATUS};
+    let left = Container::vertical([
+        View::text_document("Campaign status", [format!("+ /{LIVE_STATUS}")]).into(),
+        rms_view("Residual RMS per line (µm), line fits", LIVE_RESIDUAL_RMS).into(),
+    ])
+    .shares([1.2, 1.0]);
+    let right = Container::vertical([
+        last_seconds(series_view("Residuals from the running line fits (µm), last 30 s", LIVE_RESIDUALS), 30.0).into(),
+        View::time_series("Running residual RMS of the campaign (µm)", [format!("+ /{LIVE_RUNNING_RMS}")])
+            .without_legend()
+            .into(),
+    ])
+    .shares([1.6, 1.0]);
+    let root = Container::horizontal([
+        left.into(),
+        scene_view("Volume: stations, beams, points, current position", travel, []).into(),
+        right.into(),
+    ])
+    .shares([0.85, 1.4, 1.2]);
+    first_screen(root, paths::CAMPAIGN_TIME)
 }

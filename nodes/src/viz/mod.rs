@@ -17,6 +17,7 @@
 //! - [`error_functions`]: the 18 functions and squareness over axis position with bands.
 //! - [`volumetric`]: the volumetric error map as scaled, coloured arrows, the maximum marked.
 //! - [`solve`]: everything `volcal solve --rerun` logs, and its summary text.
+//! - [`live`]: the live view of a running campaign (the `viz` node), fed with plain data.
 //! - [`blueprint`]: default layouts, so that the first screen is useful; [`layout`]: the
 //!   blueprint builder they use.
 //! - [`colors`], [`geometry`]: colour scales; display-only geometric reductions.
@@ -26,6 +27,7 @@ pub mod colors;
 pub mod error_functions;
 pub mod geometry;
 pub mod layout;
+pub mod live;
 pub mod paths;
 pub mod residuals;
 pub mod scene;
