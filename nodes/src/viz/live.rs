@@ -23,6 +23,7 @@ use std::collections::BTreeMap;
 use volcal::beam::{fit_line, orient_with_readings};
 use volcal::campaign::{LineGroup, ObsKind, MIN_BEAM_POINTS};
 use volcal::Travel;
+use volcal_sim::plan::segment_in_travel;
 
 /// Most points drawn per line in the 3D view (every k-th reading, k doubling as the line grows).
 pub const DISPLAY_POINTS: usize = 256;
@@ -73,6 +74,20 @@ pub struct DeflectorState {
     pub elevation_rad: f64,
     /// Settled after the last command (false: moving).
     pub settled: bool,
+}
+
+impl DeflectorState {
+    /// `station 1 beam 14: az 12.30°, el 45.60°, settled`.
+    pub fn describe(&self) -> String {
+        format!(
+            "station {} beam {}: az {:.2}°, el {:.2}°, {}",
+            self.station,
+            self.beam,
+            self.azimuth_rad.to_degrees(),
+            self.elevation_rad.to_degrees(),
+            if self.settled { "settled" } else { "moving" }
+        )
+    }
 }
 
 /// Counters of one flush, for the node's own load report.
@@ -202,8 +217,18 @@ impl LiveViz {
                 .with_radii([rerun::Radius::new_ui_points(7.0)])
                 .with_labels([format!("station {}", state.station)]),
         )?;
-        let length = self.travel.map(|t| exit_distance(&t, &state.origin, &state.direction)).unwrap_or(1.0);
-        super::scene::log_commanded_beam(&self.rec, state.station, state.beam, &state.origin, &state.direction, length)?;
+        let length = self
+            .travel
+            .and_then(|t| segment_in_travel(&state.origin, &state.direction, &t, &Vector3::zeros()))
+            .map_or(1.0, |[_, end]| end);
+        super::scene::log_commanded_beam(
+            &self.rec,
+            state.station,
+            state.beam,
+            &state.origin,
+            &state.direction,
+            length,
+        )?;
         self.deflector_state(t_s, state);
         Ok(())
     }
@@ -231,7 +256,8 @@ impl LiveViz {
             Some(&k) if (!pair.beam_broken || self.lines[k].n == 0) && !self.lines[k].retired => k,
             prev => {
                 let segment = prev.map(|&k| self.lines[k].group.segment + 1).unwrap_or(0);
-                let group = LineGroup { kind: pair.kind, station: pair.station, line: pair.line, segment, start: 0, end: 0 };
+                let group =
+                    LineGroup { kind: pair.kind, station: pair.station, line: pair.line, segment, start: 0, end: 0 };
                 self.lines.push(LineState {
                     group,
                     index: self.lines.len(),
@@ -301,14 +327,7 @@ impl LiveViz {
                         .with_origins([f32p(&d.origin)])
                         .with_colors([color])
                         .with_radii([rerun::Radius::new_ui_points(3.0)])
-                        .with_labels([format!(
-                            "station {} beam {}: az {:.1}°, el {:.1}°{}",
-                            d.station,
-                            d.beam,
-                            d.azimuth_rad.to_degrees(),
-                            d.elevation_rad.to_degrees(),
-                            if d.settled { "" } else { " (moving)" }
-                        )]),
+                        .with_labels([d.describe()]),
                 )?;
             }
             self.deflector_dirty = false;
@@ -371,7 +390,12 @@ impl LiveViz {
             &rerun::LineStrips3D::new([ends.map(|p| f32p(&p))])
                 .with_colors([colors::station(line.group.station)])
                 .with_radii([rerun::Radius::new_ui_points(1.5)])
-                .with_labels([format!("{}: {} points, RMS {:.3} µm", line.group.label(), line.n, line.rms_m.unwrap_or(0.0) * 1e6)])
+                .with_labels([format!(
+                    "{}: {} points, RMS {:.3} µm",
+                    line.group.label(),
+                    line.n,
+                    line.rms_m.unwrap_or(0.0) * 1e6
+                )])
                 .with_show_labels(false),
         )?;
         if !self.dirty_stations.contains(&line.group.station) {
@@ -405,11 +429,8 @@ impl LiveViz {
 
     /// RMS of the live residuals over all fitted lines so far.
     pub fn running_rms_m(&self) -> Option<f64> {
-        let (s, n) = self
-            .lines
-            .iter()
-            .filter(|l| l.rms_m.is_some())
-            .fold((0.0, 0usize), |(s, n), l| (s + l.sum_r2, n + l.n));
+        let (s, n) =
+            self.lines.iter().filter(|l| l.rms_m.is_some()).fold((0.0, 0usize), |(s, n), l| (s + l.sum_r2, n + l.n));
         (n > 0).then(|| (s / n as f64).sqrt())
     }
 
@@ -433,19 +454,8 @@ impl LiveViz {
                 )
             })
             .unwrap_or_else(|| "**Waiting** for the first reading".into());
-        let deflector = self
-            .deflector
-            .map(|d| {
-                format!(
-                    "**Deflector**: station {} beam {}, az {:.2}°, el {:.2}°, {}",
-                    d.station,
-                    d.beam,
-                    d.azimuth_rad.to_degrees(),
-                    d.elevation_rad.to_degrees(),
-                    if d.settled { "settled" } else { "moving" }
-                )
-            })
-            .unwrap_or_else(|| "**Deflector**: no state yet".into());
+        let deflector =
+            format!("**Deflector**: {}", self.deflector.map(|d| d.describe()).unwrap_or_else(|| "no state yet".into()));
         let text = format!(
             "**Campaign time** {:.1} s · **{}** readings ({:.0} Hz) on {} lines\n\n{current}\n\n{deflector}\n\n\
              **Running residual RMS** (line fits, before calibration): {}\n\n\
@@ -462,37 +472,22 @@ impl LiveViz {
     }
 }
 
-/// Distance from `origin` along `direction` to where the ray leaves the box of `travel`
-/// (0 when it does not cross it).
-pub fn exit_distance(travel: &Travel, origin: &Point3<f64>, direction: &Vector3<f64>) -> f64 {
-    let (lo, hi) = (travel.min_corner(), travel.max_corner());
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for i in 0..3 {
-        let d = direction[i];
-        if d.abs() < 1e-15 {
-            if origin[i] < lo[i] || origin[i] > hi[i] {
-                return 0.0;
-            }
-            continue;
-        }
-        let (a, b) = ((lo[i] - origin[i]) / d, (hi[i] - origin[i]) / d);
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
-    if t1 >= t0 {
-        t1
-    } else {
-        0.0
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
     /// A straight beam from `o` along `d` read with white noise of `sigma`.
-    fn beam(station: u32, line: u32, o: Point3<f64>, d: Vector3<f64>, n: usize, t0: f64, sigma: f64, rng: &mut impl Rng) -> Vec<LivePair> {
+    fn beam(
+        station: u32,
+        line: u32,
+        o: Point3<f64>,
+        d: Vector3<f64>,
+        n: usize,
+        t0: f64,
+        sigma: f64,
+        rng: &mut impl Rng,
+    ) -> Vec<LivePair> {
         (0..n)
             .map(|i| {
                 let s = 0.1 + 0.8 * i as f64 / n as f64;
@@ -521,7 +516,8 @@ mod tests {
         let dirs = [Vector3::new(1.0, 0.3, 0.2), Vector3::new(0.2, 1.0, -0.3), Vector3::new(-0.5, 0.5, -0.7)];
         let mut logged = 0;
         for (b, d) in dirs.iter().enumerate() {
-            let pairs = beam(1, b as u32, Point3::new(0.1, 0.1, -0.5), d.normalize(), 5000, b as f64 * 10.0, sigma, &mut rng);
+            let pairs =
+                beam(1, b as u32, Point3::new(0.1, 0.1, -0.5), d.normalize(), 5000, b as f64 * 10.0, sigma, &mut rng);
             for (i, p) in pairs.iter().enumerate() {
                 viz.pair(p);
                 if i % 50 == 49 {
@@ -536,7 +532,8 @@ mod tests {
         assert!(viz.lines.iter().all(|l| l.display.len() <= DISPLAY_POINTS && l.display.len() > DISPLAY_POINTS / 4));
         assert!(viz.lines[0].points.is_empty() && viz.lines[0].retired, "the oldest line is retired");
         // A reading of a retired line, or after a beam break, starts a new segment.
-        let late = LivePair { beam_broken: false, ..beam(1, 0, Point3::origin(), Vector3::x(), 1, 40.0, 0.0, &mut rng)[0] };
+        let late =
+            LivePair { beam_broken: false, ..beam(1, 0, Point3::origin(), Vector3::x(), 1, 40.0, 0.0, &mut rng)[0] };
         viz.pair(&late);
         viz.pair(&LivePair { beam_broken: true, t_s: 40.1, ..late });
         assert_eq!(viz.lines.len(), 5);
@@ -547,20 +544,22 @@ mod tests {
             .take()
             .iter()
             .filter_map(|m| match m {
-                rerun::log::LogMsg::ArrowMsg(_, a) => rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string()),
+                rerun::log::LogMsg::ArrowMsg(_, a) => {
+                    rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
+                }
                 _ => None,
             })
             .collect();
-        for p in ["/live/residuals/stations/1/beams/2", "/stations/1/beams/2", "/stations/1/beams/2/indicated", "/live/status", "/live/residual_rms/stations/1", "/live/running_rms", "/machine/volume"] {
+        for p in [
+            "/live/residuals/stations/1/beams/2",
+            "/stations/1/beams/2",
+            "/stations/1/beams/2/indicated",
+            "/live/status",
+            "/live/residual_rms/stations/1",
+            "/live/running_rms",
+            "/machine/volume",
+        ] {
             assert!(paths.contains(p), "{p} missing from {paths:?}");
         }
-    }
-
-    #[test]
-    fn commanded_beams_end_at_the_volume() {
-        let t = Travel::new([0.0, 1.0], [0.0, 1.0], [0.0, 1.0]);
-        assert!((exit_distance(&t, &Point3::new(0.5, 0.5, 0.5), &Vector3::x()) - 0.5).abs() < 1e-12);
-        assert!((exit_distance(&t, &Point3::new(-1.0, 0.5, 0.5), &Vector3::x()) - 2.0).abs() < 1e-12);
-        assert_eq!(exit_distance(&t, &Point3::new(-1.0, 0.5, 0.5), &-Vector3::x()), 0.0);
     }
 }
