@@ -28,3 +28,79 @@ pub fn scratch(name: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+use faer::linalg::solvers::Solve;
+use nalgebra::{Point3, Vector3};
+use volcal::{gauge, predict, ErrorModel, Gauge};
+
+/// Distance between an estimate and the truth after removing the gauge freedom: the truth is
+/// moved along the 24 gauge freedoms (first onto the estimate's gauge, then by Gauss-Newton
+/// with exact kinematics) to minimise the volumetric difference over a grid and the probe
+/// offsets. Returns `(max, rms)` of the remaining difference in metres.
+pub fn gauge_distance(
+    est: &ErrorModel,
+    truth: &ErrorModel,
+    g: Gauge,
+    offsets: &[Vector3<f64>],
+    step: f64,
+) -> (f64, f64) {
+    let layout = &est.layout;
+    let nb = gauge::null_basis(layout);
+    let k = nb.ncols();
+    let mut u = gauge::align(layout, g, &truth.u);
+    let pts: Vec<Point3<f64>> = predict::grid(&layout.travel, step);
+    let diff = |u: &[f64]| -> Vec<f64> {
+        let m = ErrorModel { layout: layout.clone(), u: u.to_vec() };
+        let mut d = Vec::with_capacity(pts.len() * offsets.len() * 3);
+        for x in &pts {
+            for p in offsets {
+                let e = est.error(x, p) - m.error(x, p);
+                d.extend_from_slice(e.as_slice());
+            }
+        }
+        d
+    };
+    for _ in 0..4 {
+        // Jacobian of the model's volumetric error along each gauge freedom (small-angle).
+        let mut jt_j = faer::Mat::<f64>::zeros(k, k);
+        let mut jt_r = faer::Mat::<f64>::zeros(k, 1);
+        let r = diff(&u);
+        let mut row = 0;
+        for x in &pts {
+            for p in offsets {
+                let s = layout.sensitivity(x, p);
+                let cols: Vec<Vector3<f64>> =
+                    (0..k).map(|c| s.idx.iter().zip(&s.dedu).map(|(&i, d)| d * nb[(i, c)]).sum()).collect();
+                for a in 0..k {
+                    for b in 0..k {
+                        jt_j[(a, b)] += cols[a].dot(&cols[b]);
+                    }
+                    jt_r[(a, 0)] += cols[a].dot(&Vector3::new(r[row], r[row + 1], r[row + 2]));
+                }
+                row += 3;
+            }
+        }
+        // Some freedoms are invisible in volumetric errors too (e.g. constant rotation errors
+        // with zero probe offset): a tiny ridge keeps the normal matrix invertible.
+        let ridge = (0..k).map(|i| jt_j[(i, i)]).fold(0.0, f64::max) * 1e-12;
+        for i in 0..k {
+            jt_j[(i, i)] += ridge;
+        }
+        jt_j.partial_piv_lu().solve_in_place(jt_r.as_mut());
+        for c in 0..k {
+            for i in 0..u.len() {
+                u[i] += nb[(i, c)] * jt_r[(c, 0)];
+            }
+        }
+    }
+    let d = diff(&u);
+    let n = d.len() / 3;
+    let mut max: f64 = 0.0;
+    let mut s2 = 0.0;
+    for c in d.chunks(3) {
+        let v = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        max = max.max(v);
+        s2 += v * v;
+    }
+    (max, (s2 / n as f64).sqrt())
+}

@@ -21,7 +21,8 @@ use crate::beam::{fit_line, orient_with_readings};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::gauge::{self, Gauge, GAUGE_DIM};
 use crate::identify::{self, Identifiability};
-use crate::model::{ErrorModel, ModelLayout, Sensitivity};
+use crate::kinematics::AxisFrame;
+use crate::model::{ErrorModel, ModelLayout};
 use crate::normal;
 use crate::nullspace::NullSpace;
 use crate::range::multilaterate;
@@ -80,7 +81,8 @@ pub struct SolveOptions {
     pub gauge: Gauge,
     pub noise: NoiseModel,
     pub max_iterations: usize,
-    /// Convergence: largest parameter step, in units of its own standard uncertainty.
+    /// Convergence: largest parameter step, in units of its conditional standard uncertainty
+    /// (the solve also stops when steps stagnate below 1e-3 of it: the floating-point floor).
     pub tolerance: f64,
     pub covariance_scaling: CovarianceScaling,
     /// Eigenvalue ratio below which a direction counts as unidentifiable.
@@ -95,7 +97,7 @@ impl Default for SolveOptions {
             gauge: Gauge::Patent,
             noise: NoiseModel::default(),
             max_iterations: 50,
-            tolerance: 1e-4,
+            tolerance: 1e-5,
             covariance_scaling: CovarianceScaling::Birge,
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
@@ -224,6 +226,8 @@ struct State {
     dirs: Vec<Vector3<f64>>,
     /// Actual reflector position of every reading at `d` (exact chain).
     actual: Vec<Point3<f64>>,
+    /// Per reading and axis, what the exact Jacobian needs.
+    frames: Vec<[AxisFrame; 3]>,
 }
 
 /// Normal equations of one linearisation.
@@ -246,18 +250,16 @@ struct Problem<'a> {
     /// Beam groups sharing a direction (same station and beam id): index of the first.
     dir_owner: Vec<usize>,
     sigma: Vec<f64>,
-    sens: Vec<Sensitivity>,
     /// Per-axis basis spans of every reading, when all six functions of each axis share one
     /// representation (the usual case): enables the tiled normal-matrix kernel.
     structure: Option<Structure>,
 }
 
-/// Per reading and axis: first coefficient, basis values and lever arm.
+/// Per reading and axis: first coefficient and basis values.
 struct Structure {
     k: [usize; 3],
     first: Vec<[usize; 3]>,
     bvals: Vec<f64>,
-    lever: Vec<[Vector3<f64>; 3]>,
 }
 
 impl Structure {
@@ -276,7 +278,6 @@ impl Structure {
         let kt: usize = k.iter().sum();
         let mut first = Vec::with_capacity(obs.len());
         let mut bvals = Vec::with_capacity(obs.len() * kt);
-        let mut lever = Vec::with_capacity(obs.len());
         let mut buf = Vec::new();
         for i in 0..obs.len() {
             let mut fi = [0; 3];
@@ -288,9 +289,8 @@ impl Structure {
                 bvals.extend(buf.iter().map(|&(_, v)| v));
             }
             first.push(fi);
-            lever.push(Axis::ALL.map(|a| layout.topology.lever_arm(a, &obs.x[i], &obs.p[i])));
         }
-        Some(Structure { k, first, bvals, lever })
+        Some(Structure { k, first, bvals })
     }
 
     fn b(&self, i: usize, a: usize) -> &[f64] {
@@ -335,12 +335,6 @@ pub fn solve(
         })
         .collect();
     let structure = Structure::new(layout, obs);
-    // Generic sparse sensitivities, only needed when some axis mixes representations.
-    let sens: Vec<Sensitivity> = if structure.is_some() {
-        Vec::new()
-    } else {
-        (0..obs.len()).map(|i| layout.sensitivity(&obs.x[i], &obs.p[i])).collect()
-    };
 
     let mut warnings = Vec::new();
     // Initial state: zero errors, closed-form stations.
@@ -364,9 +358,8 @@ pub fn solve(
     let sigma: Vec<f64> = (0..obs.len())
         .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
         .collect();
-    let prob =
-        Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, sens, structure };
-    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new() };
+    let prob = Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, structure };
+    let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
 
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
@@ -396,6 +389,8 @@ pub fn solve(
     // the gradient is refreshed; the matrix is re-assembled once at the solution for the
     // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
     let mut frozen: Option<Reduced> = None;
+    let mut last_step = f64::INFINITY;
+    let mut stalls = 0;
     for it in 0..opts.max_iterations {
         iterations = it + 1;
         let step = if nonlinear {
@@ -414,7 +409,11 @@ pub fn solve(
             trial.d[k] += step.delta[k];
         }
         update_directions(&prob, &mut trial);
-        let trial_normal = if nonlinear {
+        let ratio = step.max_sigma_ratio / last_step;
+        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
+        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
+        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let trial_normal = if refresh {
             assemble(&prob, &trial, true)
         } else {
             let g = assemble(&prob, &trial, false);
@@ -429,12 +428,17 @@ pub fn solve(
             continue;
         }
         mu *= 0.1;
-        if std::env::var_os("VOLCAL_TRACE").is_some() {
-            eprintln!("iteration {it}: step/sigma {:.3e} cost {:.6e}", step.max_sigma_ratio, trial_normal.cost);
-        }
         state = trial;
         normal = trial_normal;
-        if step.max_sigma_ratio < opts.tolerance {
+        if refresh && !nonlinear {
+            frozen = None;
+        }
+        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
+        // row while already far below the uncertainty: the floating-point floor (the readings'
+        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
+        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
+        last_step = step.max_sigma_ratio;
+        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
             converged = true;
             break;
         }
@@ -574,7 +578,10 @@ fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
 /// (patent: the least-squares line of the machine points).
 fn update_directions(p: &Problem<'_>, s: &mut State) {
     let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
-    s.actual = (0..p.obs.len()).map(|i| chain.position(&p.obs.x[i], &p.obs.p[i])).collect();
+    let (actual, frames): (Vec<_>, Vec<_>) =
+        (0..p.obs.len()).map(|i| chain.position_with_frames(&p.obs.x[i], &p.obs.p[i])).unzip();
+    s.actual = actual;
+    s.frames = frames;
     for (gi, g) in p.obs.groups.iter().enumerate() {
         if g.kind != ObsKind::Beam || p.dir_owner[gi] != gi {
             continue;
@@ -633,34 +640,34 @@ fn row(
     idx.clear();
     val.clear();
     let (dir, mut f, actual) = predict_reading(p, s, gi, i);
-    match &p.structure {
-        Some(st) => {
-            // Row = sum over axes of (n, h x n) (x) basis values: n . de/du without forming de/du.
-            for a in 0..3 {
-                let hn = st.lever[i][a].cross(&dir);
-                let d = [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z];
-                let b = st.b(i, a);
-                let first = st.first[i][a];
-                for (f, &df) in d.iter().enumerate() {
-                    let col = p.layout.offsets[a * 6 + f] + first;
-                    for (k, &bk) in b.iter().enumerate() {
+    // Row = for each axis, the exact derivatives of n . P with respect to its six error values,
+    // times the basis values of its functions; then the squareness errors.
+    let x = &p.obs.x[i];
+    for a in 0..3 {
+        let fr = &s.frames[i][a];
+        let d = fr.projected(&dir);
+        let q = x[a];
+        for (f, &df) in d.iter().enumerate() {
+            let off = p.layout.offsets[a * 6 + f];
+            match &p.structure {
+                Some(st) => {
+                    let col = off + st.first[i][a];
+                    for (k, &bk) in st.b(i, a).iter().enumerate() {
                         idx.push(col + k);
                         val.push(df * bk);
                     }
                 }
-            }
-            let x = &p.obs.x[i];
-            for sq in crate::functions::Squareness::ALL {
-                idx.push(p.layout.squareness_index(sq));
-                val.push(dir.dot(&sq.direction_per_metre()) * sq.axis().coord(x));
-            }
-        }
-        None => {
-            for (k, v) in p.sens[i].project(&dir) {
-                idx.push(k);
-                val.push(v);
+                None => p.layout.bases[a * 6 + f].visit(q, false, |k, bk| {
+                    idx.push(off + k);
+                    val.push(df * bk);
+                }),
             }
         }
+    }
+    for sq in crate::functions::Squareness::ALL {
+        let a = sq.axis();
+        idx.push(p.layout.squareness_index(sq));
+        val.push(s.frames[i][a.index()].projected_squareness(&dir, sq, a.coord(x)));
     }
     let g = &p.obs.groups[gi];
     if g.kind == ObsKind::Range {
@@ -754,14 +761,10 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
                 let i = rowobs[rows_seen];
                 let dir = dirs_of_rows[rows_seen];
                 let n_sq = p.layout.n_params - 3;
-                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| {
-                    let h = st.lever[i][a];
-                    let hn = h.cross(&dir);
-                    normal::AxisSegment {
-                        col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
-                        d: [dir.x, dir.y, dir.z, hn.x, hn.y, hn.z],
-                        b: st.b(i, a),
-                    }
+                let axes: [normal::AxisSegment<'_>; 3] = std::array::from_fn(|a| normal::AxisSegment {
+                    col: std::array::from_fn(|f| p.layout.offsets[a * 6 + f] + st.first[i][a]),
+                    d: s.frames[i][a].projected(&dir),
+                    b: st.b(i, a),
                 });
                 let extras: Vec<(usize, f64)> =
                     ri.iter().zip(rv).filter(|(&c, _)| c >= n_sq).map(|(&c, &v)| (c, v)).collect();

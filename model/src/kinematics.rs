@@ -12,20 +12,23 @@
 use crate::axis::Axis;
 use crate::functions::{ErrorFunction, Motion, Squareness};
 use crate::model::{ErrorModel, ModelLayout};
-use nalgebra::{Point3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
-/// Direction of motion of axis `a` including the squareness errors.
+/// Displacement per metre of indicated travel of axis `a`, including the squareness errors.
+///
+/// Squareness is the shear `e_a + sum_s angle_s (about_s x e_a)`, linear in the angles, not a
+/// finite rotation of the unit direction. The two differ by a length change of `angle^2 / 2`
+/// (5e-10 at 30 urad), which the positioning function of the axis carries either way; the shear
+/// makes the squareness/straightness-slope gauge freedom exact instead of exact to first order,
+/// which keeps noise-free recovery at the picometre level.
 pub fn axis_direction(layout: &ModelLayout, u: &[f64], a: Axis) -> Vector3<f64> {
-    let sq = |s: Squareness| u[layout.squareness_index(s)];
-    match a {
-        Axis::X => Vector3::x(),
-        Axis::Y => Rotation3::from_axis_angle(&Vector3::z_axis(), sq(Squareness::EC0Y)) * Vector3::y(),
-        Axis::Z => {
-            let ry = Rotation3::from_axis_angle(&Vector3::y_axis(), sq(Squareness::EB0Z));
-            let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), sq(Squareness::EA0Z));
-            rx * ry * Vector3::z()
+    let mut d = a.unit();
+    for s in Squareness::ALL {
+        if s.axis() == a {
+            d += s.direction_per_metre() * u[layout.squareness_index(s)];
         }
     }
+    d
 }
 
 /// Translation and rotation error vectors of axis `a` at its coordinate `q`.
@@ -112,6 +115,81 @@ impl<'a> Chain<'a> {
             v = self.dirs[a.index()] * q + t + rotate(&r, &v);
         }
         Point3::from(v)
+    }
+
+    /// [`Chain::position`] together with, for each axis (indexed by [`Axis::index`]), what the
+    /// exact Jacobian of the position needs ([`AxisFrame`]).
+    pub fn position_with_frames(&self, x: &Point3<f64>, p: &Vector3<f64>) -> (Point3<f64>, [AxisFrame; 3]) {
+        let mut frames = [AxisFrame::default(); 3];
+        let mut v = *p;
+        // Tool end first: the vector each axis carries.
+        for &a in &self.order {
+            let q = a.coord(x);
+            let (t, r) = self.errors(a, q);
+            let carried = rotate(&r, &v);
+            frames[a.index()].carried = carried;
+            frames[a.index()].r = r;
+            v = self.dirs[a.index()] * q + t + carried;
+        }
+        // Workpiece end first: the rotation accumulated before each axis.
+        let mut acc = Matrix3::identity();
+        for &a in self.order.iter().rev() {
+            frames[a.index()].before = acc;
+            acc *= rotation_matrix(&frames[a.index()].r);
+        }
+        (Point3::from(v), frames)
+    }
+}
+
+/// Per axis, the parts of the exact Jacobian of the actual position.
+///
+/// With `M_k = Trans(q d + t) Rot(r)` and `P = R_<k (q d + t + Rot(r) v) + ...`, where `R_<k` is
+/// the product of the rotations of the axes between the workpiece and `k`, and `v` what `k`
+/// carries: `dP/dt = R_<k`, and `dP/dr = -R_<k [Rot(r) v]x J_l(r)` with the left Jacobian of
+/// SO(3) `J_l(r) = I + [r]x / 2 + O(r^2)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisFrame {
+    /// `R_<k`.
+    pub before: Matrix3<f64>,
+    /// `Rot(r) v`: the carried vector, rotated by the axis's own rotation error.
+    pub carried: Vector3<f64>,
+    /// The axis's rotation error vector at its coordinate.
+    pub r: Vector3<f64>,
+}
+
+impl Default for AxisFrame {
+    fn default() -> Self {
+        AxisFrame { before: Matrix3::identity(), carried: Vector3::zeros(), r: Vector3::zeros() }
+    }
+}
+
+impl AxisFrame {
+    /// The derivatives of `n . P` with respect to the axis's six error values
+    /// (translations along X, Y, Z; rotations about X, Y, Z).
+    #[inline]
+    pub fn projected(&self, n: &Vector3<f64>) -> [f64; 6] {
+        let nk = self.before.transpose() * n;
+        let w = self.carried.cross(&nk);
+        let c = 0.5 * w.cross(&self.r);
+        [nk.x, nk.y, nk.z, w.x + c.x, w.y + c.y, w.z + c.z]
+    }
+
+    /// The derivative of `n . P` with respect to squareness `s` of this axis at coordinate `q`.
+    #[inline]
+    pub fn projected_squareness(&self, n: &Vector3<f64>, s: Squareness, q: f64) -> f64 {
+        (self.before.transpose() * n).dot(&s.direction_per_metre()) * q
+    }
+}
+
+/// Rotation matrix of a rotation vector; the series to second order for error-sized angles
+/// (exact to `|r|^3 / 6`), the trigonometric form beyond.
+#[inline]
+pub fn rotation_matrix(r: &Vector3<f64>) -> Matrix3<f64> {
+    if r.norm_squared() < 1e-6 {
+        let k = r.cross_matrix();
+        Matrix3::identity() + k + 0.5 * k * k
+    } else {
+        *Rotation3::new(*r).matrix()
     }
 }
 
