@@ -20,8 +20,8 @@ fn volcal(dir: &Path, args: &[&str]) -> std::process::Output {
 fn solve_recording_verifies_and_has_the_expected_entities() {
     let dir = volcal_tests::scratch("rerun-solve");
     std::fs::write(dir.join("machine.yaml"), volcal_nodes::machine::DEMO_MACHINE).unwrap();
-    // A small campaign keeps the recording small: 3 stations x 8 beams x 15 points.
-    std::fs::write(dir.join("plan.yaml"), "directions_per_station: 8\npoints_per_beam: 15\n").unwrap();
+    // A small campaign keeps the recording small: 3 stations x 10 beams x 20 points.
+    std::fs::write(dir.join("plan.yaml"), "directions_per_station: 10\npoints_per_beam: 20\n").unwrap();
     volcal(
         &dir,
         &["simulate", "--machine", "machine.yaml", "--plan", "plan.yaml", "--seed", "3", "--out", "campaign.csv"],
@@ -32,7 +32,7 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
     );
     let rrd = dir.join("solve.rrd");
     let size = std::fs::metadata(&rrd).expect("no recording written").len();
-    assert!(size < 1_000_000, "recording of a 360-reading campaign is {size} bytes");
+    assert!(size < 1_000_000, "recording of a 600-reading campaign is {size} bytes");
 
     let Some(py) = volcal_tests::checker_python() else { return };
     let rerun = py.parent().unwrap().join("rerun");

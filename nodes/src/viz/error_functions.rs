@@ -4,7 +4,7 @@
 //!
 //! One plot per axis and kind (`functions/X/translation`: EXX, EYX, EZX; `functions/X/rotation`:
 //! EAX, EBX, ECX; squareness joins the rotations of the axis it belongs to, flat over its
-//! travel). The band is drawn as two thin lines `<function>/upper` and `<function>/lower`.
+//! travel). The band is drawn as two thin faded lines, series 1 and 2 of the function's entity.
 
 use super::colors;
 use super::paths;
@@ -69,7 +69,9 @@ fn squareness_color_name(s: Squareness) -> &'static str {
     }
 }
 
-/// One function `v(q)` with band `v +- u` (SI units; scaled to um/urad for display).
+/// One function `v(q)` with band `v +- u` (SI units; scaled to µm/µrad for display): one
+/// entity with three series (value, upper and lower bound of the band), which keeps the
+/// recording small.
 fn log_with_band(
     rec: &RecordingStream,
     path: &str,
@@ -79,32 +81,21 @@ fn log_with_band(
     v: &[f64],
     u: &[f64],
 ) -> anyhow::Result<()> {
+    let short = name.split(' ').next().unwrap_or(name);
+    rec.log_static(
+        path,
+        &rerun::SeriesLines::new()
+            .with_colors([color, colors::faded(color), colors::faded(color)])
+            .with_names([name.to_string(), format!("{short} + U (k=2)"), format!("{short} - U (k=2)")])
+            .with_widths([2.0, 1.0, 1.0]),
+    )?;
     let pos: Vec<i64> = q_m.iter().map(|q| (q * 1e3).round() as i64).collect();
-    let series = [
-        (path.to_string(), name.to_string(), color, 2.0, v.iter().map(|v| v * 1e6).collect::<Vec<_>>()),
-        (
-            format!("{path}/upper"),
-            format!("{} + U (k=2)", name.split(' ').next().unwrap_or(name)),
-            colors::faded(color),
-            1.0,
-            v.iter().zip(u).map(|(v, u)| (v + u) * 1e6).collect(),
-        ),
-        (
-            format!("{path}/lower"),
-            format!("{} - U (k=2)", name.split(' ').next().unwrap_or(name)),
-            colors::faded(color),
-            1.0,
-            v.iter().zip(u).map(|(v, u)| (v - u) * 1e6).collect(),
-        ),
-    ];
-    for (p, n, c, w, vals) in series {
-        rec.log_static(p.as_str(), &rerun::SeriesLines::new().with_colors([c]).with_names([n]).with_widths([w]))?;
-        rec.send_columns(
-            p.as_str(),
-            [TimeColumn::new_sequence(paths::POSITION_MM, pos.iter().copied())],
-            rerun::Scalars::new(vals).columns_of_unit_batches()?,
-        )?;
-    }
+    let values = v.iter().zip(u).flat_map(|(v, u)| [v * 1e6, (v + u) * 1e6, (v - u) * 1e6]);
+    rec.send_columns(
+        path,
+        [TimeColumn::new_sequence(paths::POSITION_MM, pos)],
+        rerun::Scalars::new(values).columns(std::iter::repeat_n(3, q_m.len()))?,
+    )?;
     Ok(())
 }
 
