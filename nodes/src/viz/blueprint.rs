@@ -80,13 +80,13 @@ pub fn first_screen(root: Container, timeline: &str) -> Layout {
 pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout {
     let left = Container::vertical([
         summary_view().into(),
-        rms_view("Residual RMS per beam (µm)", paths::RESIDUAL_RMS).into(),
+        rms_view("Residual RMS per line (µm)", paths::RESIDUAL_RMS).into(),
     ])
     .shares([1.2, 1.0]);
     let top = Container::horizontal([
         left.into(),
         scene_view("Volume: beams, stations, volumetric error", Some(travel), hide).into(),
-        series_view("Residuals (µm) over abscissa along each beam (mm)", paths::RESIDUALS).into(),
+        series_view("Residuals (µm) over the abscissa along each line (mm)", paths::RESIDUALS).into(),
     ])
     .shares([0.85, 1.1, 1.3]);
     first_screen(Container::vertical([top.into(), function_views().into()]).shares([1.4, 1.0]), paths::POSITION_MM)

@@ -3,7 +3,7 @@
 //! Display only: nothing here feeds the estimator.
 
 use nalgebra::{Matrix3, Point3, Vector3};
-use volcal::campaign::{LineGroup, ObsKind, Observations};
+use volcal::campaign::{LineGroup, Observations};
 
 /// Least-squares point closest to a set of lines (point, unit direction): the device
 /// position of a fixed-beam station, which the campaign file does not record. `None` when the
@@ -44,29 +44,13 @@ pub fn reflector_points(obs: &Observations, g: &LineGroup) -> Vec<Point3<f64>> {
     g.range().map(|i| obs.x[i] + obs.p[i]).collect()
 }
 
-/// Abscissa of each reading of a group, metres from the line's start: the interferometer
-/// reading minus its smallest value along a beam; the path length travelled along a tracer
-/// path.
+/// Abscissa of each reading of a group, metres from the line's start: the interferometer (or
+/// tracer) reading minus its smallest value along the line, so that beams and tracer paths
+/// share one axis (a tracer path's residuals then show any dependence on range).
 pub fn abscissa_m(obs: &Observations, g: &LineGroup) -> Vec<f64> {
-    match g.kind {
-        ObsKind::Beam => {
-            let l = &obs.l[g.range()];
-            let lo = l.iter().copied().fold(f64::INFINITY, f64::min);
-            l.iter().map(|v| v - lo).collect()
-        }
-        ObsKind::Range => {
-            let pts = reflector_points(obs, g);
-            let mut s = 0.0;
-            let mut out = Vec::with_capacity(pts.len());
-            for (k, p) in pts.iter().enumerate() {
-                if k > 0 {
-                    s += (p - pts[k - 1]).norm();
-                }
-                out.push(s);
-            }
-            out
-        }
-    }
+    let l = &obs.l[g.range()];
+    let lo = l.iter().copied().fold(f64::INFINITY, f64::min);
+    l.iter().map(|v| v - lo).collect()
 }
 
 #[cfg(test)]

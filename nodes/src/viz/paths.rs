@@ -26,9 +26,8 @@ use volcal::{Axis, ErrorFunction, Motion, Squareness};
 pub const CAMPAIGN_TIME: &str = "campaign_time";
 /// Timeline: running index of the measured line (beam or tracer path) in campaign order.
 pub const BEAM_INDEX: &str = "beam_index";
-/// Timeline: position along a line in millimetres. For residuals, the abscissa along the beam
-/// (or the path length along a tracer path) from its first point; for error functions, the
-/// axis position. Rerun plots a time series against the selected timeline only, so sharing one
+/// Timeline: position in millimetres. For residuals, the abscissa along the line (the reading
+/// minus its smallest value on the line); for error functions, the axis position. Rerun plots a time series against the selected timeline only, so sharing one
 /// position timeline lets residuals over the abscissa and error functions over axis position
 /// appear on the same screen.
 pub const POSITION_MM: &str = "position_mm";

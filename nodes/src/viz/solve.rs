@@ -86,14 +86,14 @@ pub fn summary_markdown(obs: &Observations, solution: &Solution, map: &volumetri
         m.at.x.z * 1e3,
     );
     let scene = format!(
-        "**Scene**: beams in their station's colour; device stations where their beams converge; points by \
-         residual/σ (blue −3, grey 0, red +3); arrows: volumetric error ×{}, coloured by |e| (blue 0 to red \
+        "**Scene**: lines in their station's colour; beam devices where their beams converge, tracer \
+         stations as estimated; points by residual/σ (blue −3, grey 0, red +3); arrows: volumetric error ×{}, coloured by |e| (blue 0 to red \
          {:.1} µm); scale bar {} µm.",
         map.scale,
         m.magnitude_m * 1e6,
         map.scale_bar_m * 1e6,
     );
-    let timelines = "**Timelines**: `position_mm` (abscissa along the beam; axis position of the functions), \
-         `campaign_time` (residuals over time), `beam_index` (spread of each beam).";
+    let timelines = "**Timelines**: `position_mm` (abscissa along each line; axis position of the functions), \
+         `campaign_time` (residuals over time), `beam_index` (spread of each line).";
     format!("{fit}\n\n{largest}\n\n{scene}\n\n{timelines}")
 }
