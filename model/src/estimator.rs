@@ -253,6 +253,8 @@ struct Problem<'a> {
     /// Per-axis basis spans of every reading, when all six functions of each axis share one
     /// representation (the usual case): enables the tiled normal-matrix kernel.
     structure: Option<Structure>,
+    /// Reference energy of each model column (see `reference_energy`).
+    ref_energy: Vec<f64>,
 }
 
 /// Per reading and axis: first coefficient and basis values.
@@ -358,25 +360,51 @@ pub fn solve(
     let sigma: Vec<f64> = (0..obs.len())
         .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
         .collect();
-    let prob = Problem { layout, gauge: opts.gauge, obs, dims, effects, group_station, dir_owner, sigma, structure };
+    let prob = Problem {
+        layout,
+        gauge: opts.gauge,
+        obs,
+        dims,
+        effects,
+        group_station,
+        dir_owner,
+        ref_energy: reference_energy(layout, obs, &sigma),
+        sigma,
+        structure,
+    };
     let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
 
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
     let n = prob.dims.n();
-    let mut cons = embed(&gauge::constraints(layout, opts.gauge), n);
+    let cons = embed(&gauge::constraints(layout, opts.gauge), n);
     let first = assemble(&prob, &state, true);
     let scale = column_scale(&first.n);
-    let mut z = NullSpace::new(&cons, &scale);
-    let m0 = reduced_matrix(&first, &z, &scale);
-    let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &z, &scale, opts.rank_tolerance);
-    let mut first_reduced = None;
-    if ident.extra_constraints.nrows() > 0 {
-        cons = stack_rows(&cons, &ident.extra_constraints);
-        z = NullSpace::new(&cons, &scale);
-    } else {
-        first_reduced = Some(m0);
-    }
+    let gauge_z = NullSpace::new(&cons, &scale);
+    let m0 = reduced_matrix(&first, &gauge_z, &scale);
+    // The identifiability analysis fixes what the data leave undetermined. If the constrained
+    // matrix is still not positive definite (directions at the rounding level of a degenerate
+    // campaign), the analysis is repeated with a looser tolerance.
+    let mut tol = opts.rank_tolerance;
+    let (ident, z, first_reduced) = loop {
+        let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &gauge_z, &scale, tol);
+        let (z, m) = if ident.extra_constraints.nrows() > 0 {
+            let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
+            let m = reduced_matrix(&first, &z, &scale);
+            (z, m)
+        } else {
+            (NullSpace::new(&cons, &scale), m0.clone())
+        };
+        match Reduced::from_matrix(m.clone(), 0.0) {
+            Ok(_) => break (ident, z, Some(m)),
+            Err(e) if tol < 1e-4 => {
+                warnings.push(format!("the constrained normal matrix was not positive definite ({e}); undetermined directions re-detected with tolerance {:.0e}", tol * 1e3));
+                tol *= 1e3;
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let mut first_reduced = first_reduced;
     warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
@@ -388,21 +416,23 @@ pub fn solve(
     // so for beam-only problems the normal matrix of the first linearisation is kept and only
     // the gradient is refreshed; the matrix is re-assembled once at the solution for the
     // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    let mut frozen: Option<Reduced> = None;
+    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
+    // refreshed matrix that fails to factorise is not adopted).
+    let mut factor = Reduced::from_matrix(first_reduced.take().expect("validated above"), 0.0)?;
     let mut last_step = f64::INFINITY;
     let mut stalls = 0;
     for it in 0..opts.max_iterations {
         iterations = it + 1;
         let step = if nonlinear {
-            reduced_step(&Reduced::new(&normal, &z, &scale, mu)?, &normal, &z, &scale)
-        } else {
-            if frozen.is_none() {
-                frozen = Some(match first_reduced.take() {
-                    Some(m) => Reduced::from_matrix(m, 0.0)?,
-                    None => Reduced::new(&normal, &z, &scale, 0.0)?,
-                });
+            match Reduced::new(&normal, &z, &scale, mu) {
+                Ok(r) => reduced_step(&r, &normal, &z, &scale),
+                Err(_) => {
+                    mu = (mu * 10.0).max(1e-6);
+                    continue;
+                }
             }
-            reduced_step(frozen.as_ref().unwrap(), &normal, &z, &scale)
+        } else {
+            reduced_step(&factor, &normal, &z, &scale)
         };
         let mut trial = state.clone();
         for k in 0..n {
@@ -431,7 +461,11 @@ pub fn solve(
         state = trial;
         normal = trial_normal;
         if refresh && !nonlinear {
-            frozen = None;
+            match Reduced::new(&normal, &z, &scale, 0.0) {
+                Ok(r) => factor = r,
+                Err(_) => warnings
+                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
+            }
         }
         // Converged when the step is negligible, or when steps have stopped shrinking twice in a
         // row while already far below the uncertainty: the floating-point floor (the readings'
@@ -452,7 +486,11 @@ pub fn solve(
     // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
     // by a relative amount of the same order, far below the precision to which it is reported.
     let final_res = residuals(&prob, &state);
-    let cov_scaled = reduced_covariance(&normal, &z, &scale)?;
+    if nonlinear {
+        // At the solution, undamped; a tiny damping if rounding makes it indefinite.
+        factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+    }
+    let cov_scaled = z.embed(&factor.llt.inverse());
     let n_obs = obs.len();
     let n_free = z.dim();
     let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
@@ -557,7 +595,15 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
             offsets.push(v);
         }
     }
+    let mut coverage = [[f64::INFINITY, f64::NEG_INFINITY]; 3];
+    for x in &p.obs.x {
+        for a in 0..3 {
+            coverage[a][0] = coverage[a][0].min(x[a]);
+            coverage[a][1] = coverage[a][1].max(x[a]);
+        }
+    }
     identify::DataSummary {
+        coverage,
         gauge: p.gauge,
         probe_offsets: offsets,
         n_beams: p.obs.groups_of(ObsKind::Beam).count(),
@@ -707,6 +753,7 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
     // Weighted column sums per group, scaled by 1/sqrt(W): N -= S S^T.
     let mut smat = if with_matrix { Mat::<f64>::zeros(n, ng) } else { Mat::zeros(0, 0) };
     let mut gsum = vec![0.0; n];
+    let mut is_touched = vec![false; n];
     let mut touched: Vec<usize> = Vec::new();
     let (mut idx, mut val, mut ebuf) = (Vec::with_capacity(128), Vec::with_capacity(128), Vec::new());
     // Rows of the current group: (start offset into idx/val buffers, residual, weight).
@@ -752,7 +799,9 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             }
             for a in 0..len {
                 let ia = ri[a];
-                if gsum[ia] == 0.0 {
+                // An explicit marker: a running sum can cancel to exactly zero mid-group.
+                if !is_touched[ia] {
+                    is_touched[ia] = true;
                     touched.push(ia);
                 }
                 gsum[ia] += w * rv[a];
@@ -792,6 +841,7 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             for &k in &touched {
                 smat[(k, gi)] = gsum[k] / sw;
                 gsum[k] = 0.0;
+                is_touched[k] = false;
             }
             touched.clear();
         }
@@ -801,6 +851,26 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
     }
     let mut nm = upper.to_mat();
     matmul(nm.as_mut(), Accum::Add, smat.as_ref(), smat.transpose(), -1.0, Par::Seq);
+    // Eliminating the origins computes `sum w a^2 - (sum w a)^2 / W`, which cancels for a column
+    // that is (nearly) constant within every line and leaves rounding noise of ~eps relative to
+    // the raw sum; the Jacobi scaling would amplify it by raw / centred. A column whose centred
+    // energy is below 1e-5 of its raw energy therefore carries no information this double-
+    // precision solve can resolve (the noise left elsewhere is then below 2e-11, under the rank
+    // tolerance): it is set exactly to zero, and the identifiability report names it.
+    // Likewise a model column whose centred energy is below 1e-10 of its reference energy (the
+    // energy it would have at its nominal first-order sensitivity: a sensitivity below 1e-5 of
+    // nominal, e.g. a beam orthogonal to a function up to rounding or seen only at second order)
+    // is not observed; the Jacobi scaling would otherwise promote it to information.
+    for k in 0..n {
+        let raw = upper.data[k * n + k];
+        let weak = k < p.ref_energy.len() && nm[(k, k)] <= NOMINAL_FLOOR * p.ref_energy[k];
+        if nm[(k, k)] <= CENTRED_FLOOR * raw || weak {
+            for j in 0..n {
+                nm[(k, j)] = 0.0;
+                nm[(j, k)] = 0.0;
+            }
+        }
+    }
     Normal { n: nm, b, cost }
 }
 
@@ -893,12 +963,145 @@ fn reduced_step(red: &Reduced, normal: &Normal, z: &NullSpace, scale: &[f64]) ->
     Step { delta: (0..n).map(|i| ds[(i, 0)] / scale[i]).collect(), max_sigma_ratio: max_ratio }
 }
 
-/// Covariance in scaled coordinates: `Z (Z^T N_s Z)^-1 Z^T`.
-fn reduced_covariance(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Result<Mat<f64>, SolveError> {
-    let m = reduced_matrix(normal, z, scale);
-    let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
-    Ok(z.embed(&llt.inverse()))
+/// Smallest resolvable ratio of a column's centred to raw energy (see `assemble`).
+const CENTRED_FLOOR: f64 = 1e-5;
+/// Smallest ratio of a model column's energy to its reference energy (see `reference_energy`).
+const NOMINAL_FLOOR: f64 = 1e-10;
+
+/// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
+/// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
+/// largest probe offset) or the axis coordinate (squareness), squared and weighted.
+fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64]) -> Vec<f64> {
+    use crate::functions::{ErrorFunction, Motion, Squareness};
+    let t = &layout.travel;
+    let diag =
+        (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
+    let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let mut e = vec![0.0; layout.n_params];
+    for i in 0..obs.len() {
+        let w = 1.0 / (sigma[i] * sigma[i]);
+        for f in ErrorFunction::all() {
+            let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
+            let off = layout.offsets[f.index()];
+            layout.basis(f).visit(f.axis.coord(&obs.x[i]), false, |k, b| e[off + k] += w * (typ * b).powi(2));
+        }
+        for s in Squareness::ALL {
+            e[layout.squareness_index(s)] += w * s.axis().coord(&obs.x[i]).powi(2);
+        }
+    }
+    e
 }
 
 /// Number of gauge freedoms (re-exported for reports).
 pub const GAUGE_FREEDOMS: usize = GAUGE_DIM;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axis::Travel;
+    use crate::campaign::{prepare, Campaign, CampaignMeta, Reading, ScaleExpansion};
+    use crate::repr::Representation;
+    use crate::topology::Topology;
+
+    /// Lines parallel to X (a degenerate, symmetric geometry) with arbitrary readings.
+    fn problem_data() -> (ModelLayout, Observations) {
+        let layout = ModelLayout::uniform(
+            Topology::parse("FXYZ").unwrap(),
+            Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            Representation::BSpline { intervals: 5 },
+        );
+        let mut readings = Vec::new();
+        for (line, (y, z)) in [(0.1, -0.5), (0.4, -0.3), (0.7, -0.1)].into_iter().enumerate() {
+            for k in 0..15 {
+                let x = 0.05 + 0.9 * k as f64 / 14.0;
+                readings.push(Reading {
+                    kind: ObsKind::Beam,
+                    station: 0,
+                    line: line as u32,
+                    t_s: k as f64,
+                    l_m: x + 1e-6 * ((k * 7 + line) % 5) as f64,
+                    x: Point3::new(x, y, z),
+                    p: Vector3::new(0.0, 0.0, -0.1),
+                    air: None,
+                    machine_temp_c: None,
+                    velocity: None,
+                    beam_broken: false,
+                    source_line: 0,
+                });
+            }
+        }
+        let c = Campaign { meta: CampaignMeta::default(), readings };
+        let p = prepare(&c, &layout.travel, &ScaleExpansion::default()).unwrap();
+        (layout, p.obs)
+    }
+
+    #[test]
+    fn assembly_matches_brute_force() {
+        let (layout, obs) = problem_data();
+        let dims = Dims { n_u: layout.n_params, stations: Vec::new(), n_e: 0 };
+        let n = dims.n();
+        let prob = Problem {
+            layout: &layout,
+            gauge: Gauge::Patent,
+            obs: &obs,
+            dims,
+            effects: &[],
+            group_station: vec![usize::MAX; obs.groups.len()],
+            dir_owner: (0..obs.groups.len()).collect(),
+            sigma: vec![1e-7; obs.len()],
+            structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
+        };
+        assert!(prob.structure.is_some());
+        let mut st = State {
+            d: vec![0.0; n],
+            dirs: vec![Vector3::zeros(); obs.groups.len()],
+            actual: Vec::new(),
+            frames: Vec::new(),
+        };
+        update_directions(&prob, &mut st);
+        let fast = assemble(&prob, &st, true);
+        let mut dense = Mat::<f64>::zeros(n, n);
+        let (mut idx, mut val, mut eb) = (Vec::new(), Vec::new(), Vec::new());
+        for (gi, g) in obs.groups.iter().enumerate() {
+            let mut rows = Vec::new();
+            for i in g.range() {
+                row(&prob, &st, gi, i, &mut idx, &mut val, &mut eb);
+                let mut a = vec![0.0; n];
+                for (&k, &v) in idx.iter().zip(&val) {
+                    a[k] += v;
+                }
+                rows.push(a);
+            }
+            let w = 1.0 / (1e-7 * 1e-7);
+            let mean: Vec<f64> = (0..n).map(|k| rows.iter().map(|r| r[k]).sum::<f64>() / rows.len() as f64).collect();
+            for r in &rows {
+                for i in 0..n {
+                    for j in 0..n {
+                        dense[(i, j)] += w * (r[i] - mean[i]) * (r[j] - mean[j]);
+                    }
+                }
+            }
+        }
+        let ev = fast.n.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let emax = ev.iter().cloned().fold(0.0, f64::max);
+        assert!(ev[0] > -1e-10 * emax, "normal matrix not PSD: {} relative", ev[0] / emax);
+        let sc = column_scale(&fast.n);
+        let z = NullSpace::new(&embed(&gauge::constraints(&layout, Gauge::Patent), n), &sc);
+        let m = reduced_matrix(&fast, &z, &sc);
+        let evm = m.self_adjoint_eigenvalues(Side::Lower).unwrap();
+        let mmax = evm.iter().cloned().fold(0.0, f64::max);
+        assert!(evm[0] > -1e-10 * mmax, "reduced matrix not PSD: {} relative", evm[0] / mmax);
+        let scale = (0..n).map(|i| dense[(i, i)]).fold(0.0, f64::max);
+        for i in 0..n {
+            for j in 0..n {
+                assert!(
+                    (fast.n[(i, j)] - dense[(i, j)]).abs() < 1e-9 * scale,
+                    "({i}, {j}): {} vs {}",
+                    fast.n[(i, j)],
+                    dense[(i, j)]
+                );
+            }
+        }
+    }
+}

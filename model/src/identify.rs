@@ -29,6 +29,8 @@ pub struct DataSummary {
     pub n_effect_params: usize,
     pub effect_col: usize,
     pub station_col: usize,
+    /// Range of the indicated coordinates of the readings, per axis.
+    pub coverage: [[f64; 2]; 3],
 }
 
 /// The identifiability report of a solve.
@@ -365,7 +367,20 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         };
         st.push(format!("{} ({}) cannot be identified from these data: {}.", name(&units[i]), desc(&units[i]), reason));
     }
-    for g in &groups {
+    for g in groups.iter().filter(|g| g.len() == 1) {
+        let i = g[0];
+        let axis_note = match &units[i] {
+            Unit::F(f) => coverage_note(summary, layout, f.axis),
+            _ => String::new(),
+        };
+        st.push(format!(
+            "{} ({}) is only partly determined: part of its shape along the travel is not observed{}.",
+            name(&units[i]),
+            desc(&units[i]),
+            axis_note
+        ));
+    }
+    for g in groups.iter().filter(|g| g.len() > 1) {
         let names: Vec<String> = g.iter().map(|&i| name(&units[i])).collect();
         let last_rot =
             g.iter().any(|&i| matches!(&units[i], Unit::F(f) if f.motion == Motion::Rotation && f.axis == last));
@@ -383,6 +398,12 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         };
         st.push(format!("{} are determined only in combination{}.", names.join(", "), hint));
     }
+    for a in crate::axis::Axis::ALL {
+        let note = coverage_note(summary, layout, a);
+        if !note.is_empty() && report.extra_null_dim > 0 {
+            st.push(format!("Coverage: {}.", note.trim_start_matches("; ")));
+        }
+    }
     if report.constraint_conditioning < 1e-8 {
         st.push(
             "The gauge constraints do not fix all 24 gauge freedoms: the result is arbitrary along some of them."
@@ -390,4 +411,15 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         );
     }
     report.statements = st;
+}
+
+/// `": the data cover X only over [a, b] m of its travel [lo, hi] m"` when less than 95 % of an
+/// axis's travel is covered by the readings, else empty.
+fn coverage_note(summary: &DataSummary, layout: &ModelLayout, a: crate::axis::Axis) -> String {
+    let [lo, hi] = layout.travel.range(a);
+    let [c0, c1] = summary.coverage[a.index()];
+    if c1 - c0 >= 0.95 * (hi - lo) {
+        return String::new();
+    }
+    format!("; the readings cover {} only over [{c0:.3}, {c1:.3}] m of its travel [{lo:.3}, {hi:.3}] m, so its functions are undetermined beyond", a.letter())
 }

@@ -1,0 +1,246 @@
+//! The `volcal` command line: contract, bad input (issue 2, acceptance 6) and determinism.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn volcal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_volcal")).args(args).output().expect("volcal runs")
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("volcal-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn machine() -> String {
+    repo().join("launch_configs/machines/demo_cmm.yaml").display().to_string()
+}
+
+/// The patent's example campaign (3 x 25 beams x 100 points), simulated.
+fn campaign(dir: &Path) -> PathBuf {
+    let out = dir.join("campaign.csv");
+    let plan = repo().join("launch_configs/plans/patent_example.yaml");
+    let o = volcal(&[
+        "simulate",
+        "--machine",
+        &machine(),
+        "--plan",
+        plan.to_str().unwrap(),
+        "--seed",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+        "--truth",
+        dir.join("truth.json").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// Runs `volcal solve` on a campaign text and returns (exit code, output).
+fn solve_text(dir: &Path, name: &str, csv: &str) -> (i32, String) {
+    let path = dir.join(name);
+    std::fs::write(&path, csv).unwrap();
+    let o = volcal(&[
+        "solve",
+        path.to_str().unwrap(),
+        "--machine",
+        &machine(),
+        "--out",
+        dir.join("m.json").to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(!t.contains("panicked"), "volcal panicked: {t}");
+    (o.status.code().unwrap_or(-1), t)
+}
+
+#[test]
+fn every_subcommand_has_an_example() {
+    for sub in ["simulate", "solve", "predict", "map", "report", "demo"] {
+        let o = volcal(&[sub, "--help"]);
+        assert!(o.status.success());
+        assert!(text(&o).contains("Example"), "{sub} --help has no example");
+    }
+}
+
+#[test]
+fn solve_predict_map_report_and_determinism() {
+    let d = scratch("chain");
+    let c = campaign(&d);
+    let m1 = d.join("model1.json");
+    let m2 = d.join("model2.json");
+    for m in [&m1, &m2] {
+        let o = volcal(&["solve", c.to_str().unwrap(), "--machine", &machine(), "--out", m.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o));
+        let t = text(&o);
+        assert!(t.contains("EXX") && t.contains("Max volumetric error") && t.contains("um"), "{t}");
+    }
+    // The same input gives a bit-identical model.
+    assert_eq!(std::fs::read(&m1).unwrap(), std::fs::read(&m2).unwrap());
+
+    let pts = d.join("points.csv");
+    std::fs::write(&pts, "x_m,y_m,z_m,px_m,py_m,pz_m\n0.5,0.4,-0.3,0,0,-0.1\n0.1,0.7,-0.5,0.12,0,-0.1\n").unwrap();
+    let out = d.join("errors.csv");
+    let o = volcal(&["predict", m1.to_str().unwrap(), pts.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let e = std::fs::read_to_string(&out).unwrap();
+    assert!(e.starts_with("x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,u95_m\n"), "{e}");
+    assert_eq!(e.lines().count(), 3);
+
+    let map = d.join("map.csv");
+    let o =
+        volcal(&["map", m1.to_str().unwrap(), "--step", "0.2", "--out", map.to_str().unwrap(), "--probe", "0,0,-0.1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(std::fs::read_to_string(&map).unwrap().lines().count(), 1 + 6 * 5 * 4);
+
+    let comp = d.join("comp");
+    let o = volcal(&["report", m1.to_str().unwrap(), "--compensation-dir", comp.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    for a in ["x", "y", "z"] {
+        let t = std::fs::read_to_string(comp.join(format!("compensation_{a}.csv"))).unwrap();
+        assert!(t.lines().count() > 50, "{t}");
+    }
+}
+
+#[test]
+fn bad_input_is_reported_with_file_line_and_field() {
+    let d = scratch("bad");
+    let good = std::fs::read_to_string(campaign(&d)).unwrap();
+    let lines: Vec<&str> = good.lines().collect();
+    let header_at = lines.iter().position(|l| l.starts_with("kind,")).unwrap();
+
+    // A malformed row: too few fields.
+    let mut bad = lines.clone();
+    bad[header_at + 5] = "beam,0,1,0.5";
+    let (code, t) = solve_text(&d, "short_row.csv", &(bad.join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(
+        t.contains("short_row.csv line") && t.contains(&format!("line {}", header_at + 6)) && t.contains("fields"),
+        "{t}"
+    );
+
+    // A number that is not a number.
+    let mut bad = lines.clone();
+    let row = lines[header_at + 7].replacen(",", ",", 1);
+    let mut f: Vec<&str> = row.split(',').collect();
+    f[4] = "0.12x";
+    let row = f.join(",");
+    bad[header_at + 7] = &row;
+    let (code, t) = solve_text(&d, "nan_text.csv", &(bad.join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(t.contains(&format!("line {}", header_at + 8)) && t.contains("l_m"), "{t}");
+
+    // NaN and inf.
+    for v in ["NaN", "inf", "-inf"] {
+        let mut bad = lines.clone();
+        let mut f: Vec<&str> = lines[header_at + 3].split(',').collect();
+        f[6] = v;
+        let row = f.join(",");
+        bad[header_at + 3] = &row;
+        let (code, t) = solve_text(&d, "nan.csv", &(bad.join("\n") + "\n"));
+        assert_ne!(code, 0, "{v}");
+        assert!(
+            t.contains(&format!("line {}", header_at + 4)) && t.contains("y_m") && t.contains("finite"),
+            "{v}: {t}"
+        );
+    }
+
+    // An empty file, a header-only file.
+    let (code, t) = solve_text(&d, "empty.csv", "");
+    assert_ne!(code, 0);
+    assert!(t.contains("no header"), "{t}");
+    let (code, t) = solve_text(&d, "header.csv", &(lines[..=header_at].join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(t.contains("no readings"), "{t}");
+
+    // Coordinates in millimetres.
+    let mm: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            if i <= header_at {
+                return l.to_string();
+            }
+            let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            for k in 5..8 {
+                f[k] = (f[k].parse::<f64>().unwrap() * 1000.0).to_string();
+            }
+            f.join(",")
+        })
+        .collect();
+    let (code, t) = solve_text(&d, "mm.csv", &(mm.join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(t.contains("millimetres") && t.contains("x_m/y_m/z_m"), "{t}");
+
+    // Abscissae in millimetres.
+    let mm: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            if i <= header_at {
+                return l.to_string();
+            }
+            let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            f[4] = (f[4].parse::<f64>().unwrap() * 1000.0).to_string();
+            f.join(",")
+        })
+        .collect();
+    let (code, t) = solve_text(&d, "lmm.csv", &(mm.join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(t.contains("millimetres") && t.contains("l_m"), "{t}");
+
+    // Too-short beams are skipped with a warning naming them; the rest still solves.
+    let mut short: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    short.push("beam,7,99,0,0,0.5,0.4,-0.3,0,0,-0.1".into());
+    short.push("beam,7,99,1,0.01,0.51,0.4,-0.3,0,0,-0.1".into());
+    let (code, t) = solve_text(&d, "shortbeam.csv", &(short.join("\n") + "\n"));
+    assert_eq!(code, 0, "{t}");
+    assert!(t.contains("station 7 beam 99 has 2 point(s)"), "{t}");
+
+    // Unknown topology in the machine file.
+    let bad_machine = d.join("bad_machine.yaml");
+    std::fs::write(&bad_machine, "topology: FXQZ\ntravel: {x: [0, 1], y: [0, 0.8], z: [-0.6, 0]}\n").unwrap();
+    let o = volcal(&[
+        "solve",
+        d.join("campaign.csv").to_str().unwrap(),
+        "--machine",
+        bad_machine.to_str().unwrap(),
+        "--out",
+        d.join("x.json").to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(
+        !o.status.success() && t.contains("bad_machine.yaml") && t.contains("topology") && t.contains("FXQZ"),
+        "{t}"
+    );
+    assert!(!t.contains("panicked"));
+}
+
+#[test]
+fn rank_deficient_campaign_warns_and_exits_3() {
+    // Only beams of one station with a single probe offset along Z: some functions cannot be
+    // identified. The model is written, the report names them, and the exit status says so.
+    let d = scratch("rank");
+    let plan = d.join("plan.yaml");
+    std::fs::write(&plan, "probe_offsets: [[0, 0, -0.15]]\n").unwrap();
+    let c = d.join("c.csv");
+    let o =
+        volcal(&["simulate", "--machine", &machine(), "--plan", plan.to_str().unwrap(), "--out", c.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o =
+        volcal(&["solve", c.to_str().unwrap(), "--machine", &machine(), "--out", d.join("m.json").to_str().unwrap()]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(3), "{t}");
+    assert!(t.contains("ECZ") && t.contains("cannot be identified"), "{t}");
+    assert!(d.join("m.json").exists());
+}
