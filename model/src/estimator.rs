@@ -232,10 +232,12 @@ struct State {
 
 /// Normal equations of one linearisation.
 struct Normal {
-    /// n x n, column-major, full symmetric.
+    /// n x n, full symmetric; empty for a gradient-only evaluation.
     n: Mat<f64>,
     b: Vec<f64>,
     cost: f64,
+    /// Centred residual of every reading and the origin of every group, at this state.
+    res: Residuals,
 }
 
 /// Everything that stays fixed during a solve.
@@ -378,33 +380,45 @@ pub fn solve(
     // Constraints: the gauge on u, plus whatever the identifiability analysis adds.
     let n = prob.dims.n();
     let cons = embed(&gauge::constraints(layout, opts.gauge), n);
-    let first = assemble(&prob, &state, true);
+    let first = assemble(&prob, &state);
     let scale = column_scale(&first.n);
     let gauge_z = NullSpace::new(&cons, &scale);
     let m0 = reduced_matrix(&first, &gauge_z, &scale);
+    let f0 = Reduced::from_matrix(m0.clone(), 0.0).ok();
     // The identifiability analysis fixes what the data leave undetermined. If the constrained
     // matrix is still not positive definite (directions at the rounding level of a degenerate
     // campaign), the analysis is repeated with a looser tolerance.
     let mut tol = opts.rank_tolerance;
-    let (ident, z, first_reduced) = loop {
-        let ident = identify::analyse(layout, &prob_summary(&prob), &first.n, &m0, &gauge_z, &scale, tol);
-        let (z, m) = if ident.extra_constraints.nrows() > 0 {
-            let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
-            let m = reduced_matrix(&first, &z, &scale);
-            (z, m)
-        } else {
-            (NullSpace::new(&cons, &scale), m0.clone())
-        };
-        match Reduced::from_matrix(m.clone(), 0.0) {
-            Ok(_) => break (ident, z, Some(m)),
+    let mut f0 = f0;
+    let (ident, z, mut factor) = loop {
+        let ident = identify::analyse(
+            layout,
+            &prob_summary(&prob),
+            &first.n,
+            &m0,
+            f0.as_ref().map(|f| &f.llt),
+            &gauge_z,
+            &scale,
+            tol,
+        );
+        if ident.extra_constraints.nrows() == 0 {
+            if let Some(f) = f0.take() {
+                break (ident, NullSpace::new(&cons, &scale), f);
+            }
+        }
+        let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
+        match Reduced::new(&first, &z, &scale, 0.0) {
+            Ok(f) => break (ident, z, f),
             Err(e) if tol < 1e-4 => {
-                warnings.push(format!("the constrained normal matrix was not positive definite ({e}); undetermined directions re-detected with tolerance {:.0e}", tol * 1e3));
+                warnings.push(format!(
+                    "the constrained normal matrix was not positive definite ({e}); undetermined directions re-detected with tolerance {:.0e}",
+                    tol * 1e3
+                ));
                 tol *= 1e3;
             }
             Err(e) => return Err(e),
         }
     };
-    let mut first_reduced = first_reduced;
     warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
@@ -418,7 +432,6 @@ pub fn solve(
     // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
     // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
     // refreshed matrix that fails to factorise is not adopted).
-    let mut factor = Reduced::from_matrix(first_reduced.take().expect("validated above"), 0.0)?;
     let mut last_step = f64::INFINITY;
     let mut stalls = 0;
     for it in 0..opts.max_iterations {
@@ -443,12 +456,7 @@ pub fn solve(
         // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
         // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
         let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
-        let trial_normal = if refresh {
-            assemble(&prob, &trial, true)
-        } else {
-            let g = assemble(&prob, &trial, false);
-            Normal { n: normal.n.clone(), b: g.b, cost: g.cost }
-        };
+        let trial_normal = if refresh { assemble(&prob, &trial) } else { gradient(&prob, &trial) };
         if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
             mu = (mu * 10.0).max(1e-6);
             if mu > 1e12 {
@@ -485,7 +493,7 @@ pub fn solve(
     // the frozen one: its rows differ from those at the solution only through the change of
     // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
     // by a relative amount of the same order, far below the precision to which it is reported.
-    let final_res = residuals(&prob, &state);
+    let final_res = Residuals { residual: normal.res.residual.clone(), origin: normal.res.origin.clone() };
     if nonlinear {
         // At the solution, undamped; a tiny damping if rounding makes it indefinite.
         factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
@@ -624,8 +632,17 @@ fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
 /// (patent: the least-squares line of the machine points).
 fn update_directions(p: &Problem<'_>, s: &mut State) {
     let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
-    let (actual, frames): (Vec<_>, Vec<_>) =
-        (0..p.obs.len()).map(|i| chain.position_with_frames(&p.obs.x[i], &p.obs.p[i])).unzip();
+    let (actual, frames): (Vec<_>, Vec<_>) = (0..p.obs.len())
+        .map(|i| match &p.structure {
+            // The basis values at the readings' coordinates do not change during a solve.
+            Some(st) => chain.position_with_frames_cached(
+                &p.obs.x[i],
+                &p.obs.p[i],
+                std::array::from_fn(|a| (st.first[i][a], st.b(i, a))),
+            ),
+            None => chain.position_with_frames(&p.obs.x[i], &p.obs.p[i]),
+        })
+        .unzip();
     s.actual = actual;
     s.frames = frames;
     for (gi, g) in p.obs.groups.iter().enumerate() {
@@ -672,6 +689,73 @@ fn predict_reading(p: &Problem<'_>, s: &State, gi: usize, i: usize) -> (Vector3<
     }
 }
 
+/// Residual of reading `i` (reading minus prediction, without the group origin) and the
+/// direction along which the reading increases; `ebuf` receives the effects' regressors.
+fn residual(p: &Problem<'_>, s: &State, gi: usize, i: usize, ebuf: &mut Vec<f64>) -> (f64, Vector3<f64>) {
+    let (dir, mut f, actual) = predict_reading(p, s, gi, i);
+    ebuf.clear();
+    if p.dims.n_e > 0 {
+        let ctx = ObsContext { obs: p.obs, i, group: &p.obs.groups[gi], direction: dir, actual };
+        let mut col = p.dims.effect_col();
+        for e in p.effects {
+            let start = ebuf.len();
+            ebuf.resize(start + e.param_names().len(), 0.0);
+            e.regressors(&ctx, &mut ebuf[start..]);
+            for &v in &ebuf[start..] {
+                f += v * s.d[col];
+                col += 1;
+            }
+        }
+    }
+    (p.obs.l[i] - f, dir)
+}
+
+/// Calls `emit(column, value)` for every entry of the row of reading `i` with direction `dir`,
+/// in increasing column order: for each axis the exact derivatives of `n . P` with respect to
+/// its six error values times the basis values of its functions; the squareness errors; the
+/// station coordinates (ranges); the effects' regressors (given in `ebuf`).
+#[inline]
+fn for_each_entry(
+    p: &Problem<'_>,
+    s: &State,
+    gi: usize,
+    i: usize,
+    dir: &Vector3<f64>,
+    ebuf: &[f64],
+    mut emit: impl FnMut(usize, f64),
+) {
+    let x = &p.obs.x[i];
+    for a in 0..3 {
+        let d = s.frames[i][a].projected(dir);
+        for (f, &df) in d.iter().enumerate() {
+            let off = p.layout.offsets[a * 6 + f];
+            match &p.structure {
+                Some(st) => {
+                    let col = off + st.first[i][a];
+                    for (k, &bk) in st.b(i, a).iter().enumerate() {
+                        emit(col + k, df * bk);
+                    }
+                }
+                None => p.layout.bases[a * 6 + f].visit(x[a], false, |k, bk| emit(off + k, df * bk)),
+            }
+        }
+    }
+    for sq in crate::functions::Squareness::ALL {
+        let a = sq.axis();
+        emit(p.layout.squareness_index(sq), s.frames[i][a.index()].projected_squareness(dir, sq, a.coord(x)));
+    }
+    if p.obs.groups[gi].kind == ObsKind::Range {
+        let c = p.dims.station_col(p.group_station[gi]);
+        for k in 0..3 {
+            emit(c + k, -dir[k]);
+        }
+    }
+    let col = p.dims.effect_col();
+    for (k, &v) in ebuf.iter().enumerate() {
+        emit(col + k, v);
+    }
+}
+
 /// Builds the sparse row of reading `i` (sorted column indices); returns its residual and the
 /// direction along which the reading increases.
 fn row(
@@ -685,67 +769,58 @@ fn row(
 ) -> (f64, Vector3<f64>) {
     idx.clear();
     val.clear();
-    let (dir, mut f, actual) = predict_reading(p, s, gi, i);
-    // Row = for each axis, the exact derivatives of n . P with respect to its six error values,
-    // times the basis values of its functions; then the squareness errors.
-    let x = &p.obs.x[i];
-    for a in 0..3 {
-        let fr = &s.frames[i][a];
-        let d = fr.projected(&dir);
-        let q = x[a];
-        for (f, &df) in d.iter().enumerate() {
-            let off = p.layout.offsets[a * 6 + f];
-            match &p.structure {
-                Some(st) => {
-                    let col = off + st.first[i][a];
-                    for (k, &bk) in st.b(i, a).iter().enumerate() {
-                        idx.push(col + k);
-                        val.push(df * bk);
-                    }
-                }
-                None => p.layout.bases[a * 6 + f].visit(q, false, |k, bk| {
-                    idx.push(off + k);
-                    val.push(df * bk);
-                }),
-            }
+    let (r, dir) = residual(p, s, gi, i, ebuf);
+    for_each_entry(p, s, gi, i, &dir, ebuf, |k, v| {
+        idx.push(k);
+        val.push(v);
+    });
+    (r, dir)
+}
+
+/// The gradient `b`, the cost and the centred residuals at a state, without the normal matrix
+/// (the frozen-matrix iterations need only these).
+fn gradient(p: &Problem<'_>, s: &State) -> Normal {
+    let n = p.dims.n();
+    let mut b = vec![0.0; n];
+    let mut res = Residuals { residual: vec![0.0; p.obs.len()], origin: vec![0.0; p.obs.groups.len()] };
+    let mut cost = 0.0;
+    let mut ebuf = Vec::new();
+    let mut dirs: Vec<Vector3<f64>> = Vec::new();
+    let mut regs: Vec<f64> = Vec::new();
+    for (gi, g) in p.obs.groups.iter().enumerate() {
+        dirs.clear();
+        regs.clear();
+        let (mut wsum, mut wr) = (0.0, 0.0);
+        for i in g.range() {
+            let (r, dir) = residual(p, s, gi, i, &mut ebuf);
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            res.residual[i] = r;
+            dirs.push(dir);
+            regs.extend_from_slice(&ebuf);
+            wsum += w;
+            wr += w * r;
+        }
+        let rm = wr / wsum;
+        res.origin[gi] = rm;
+        let ne = p.dims.n_e;
+        for (j, i) in g.range().enumerate() {
+            let rc = res.residual[i] - rm;
+            res.residual[i] = rc;
+            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+            cost += w * rc * rc;
+            let wr = w * rc;
+            for_each_entry(p, s, gi, i, &dirs[j], &regs[j * ne..(j + 1) * ne], |k, v| b[k] += wr * v);
         }
     }
-    for sq in crate::functions::Squareness::ALL {
-        let a = sq.axis();
-        idx.push(p.layout.squareness_index(sq));
-        val.push(s.frames[i][a.index()].projected_squareness(&dir, sq, a.coord(x)));
-    }
-    let g = &p.obs.groups[gi];
-    if g.kind == ObsKind::Range {
-        let c = p.dims.station_col(p.group_station[gi]);
-        for k in 0..3 {
-            idx.push(c + k);
-            val.push(-dir[k]);
-        }
-    }
-    if p.dims.n_e > 0 {
-        let ctx = ObsContext { obs: p.obs, i, group: g, direction: dir, actual };
-        let mut col = p.dims.effect_col();
-        for e in p.effects {
-            let m = e.param_names().len();
-            ebuf.clear();
-            ebuf.resize(m, 0.0);
-            e.regressors(&ctx, ebuf);
-            for &v in ebuf.iter() {
-                f += v * s.d[col];
-                idx.push(col);
-                val.push(v);
-                col += 1;
-            }
-        }
-    }
-    (p.obs.l[i] - f, dir)
+    Normal { n: Mat::zeros(0, 0), b, cost, res }
 }
 
 /// Assembles the normal equations, eliminating each group's origin. Residuals are centred per
 /// group before they enter `b` and the cost, so the large arbitrary origins of the readings never
 /// meet the small residuals in one sum.
-fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
+fn assemble(p: &Problem<'_>, s: &State) -> Normal {
+    let with_matrix = true;
+    let mut res = Residuals { residual: vec![0.0; p.obs.len()], origin: vec![0.0; p.obs.groups.len()] };
     let n = p.dims.n();
     let ng = p.obs.groups.len();
     let mut upper = normal::Upper::new(if with_matrix { n } else { 0 });
@@ -786,8 +861,10 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             wr += w * r;
         }
         let rm = wr / wsum;
-        for &(start, len, r, w) in &rows {
+        res.origin[gi] = rm;
+        for (&(start, len, r, w), &i) in rows.iter().zip(&rowobs) {
             let rc = r - rm;
+            res.residual[i] = rc;
             cost += w * rc * rc;
             let ri = &gidx[start..start + len];
             let rv = &gval[start..start + len];
@@ -846,9 +923,6 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             touched.clear();
         }
     }
-    if !with_matrix {
-        return Normal { n: Mat::zeros(0, 0), b, cost };
-    }
     let mut nm = upper.to_mat();
     matmul(nm.as_mut(), Accum::Add, smat.as_ref(), smat.transpose(), -1.0, Par::Seq);
     // Eliminating the origins computes `sum w a^2 - (sum w a)^2 / W`, which cancels for a column
@@ -871,36 +945,13 @@ fn assemble(p: &Problem<'_>, s: &State, with_matrix: bool) -> Normal {
             }
         }
     }
-    Normal { n: nm, b, cost }
+    Normal { n: nm, b, cost, res }
 }
 
 /// Centred residuals and group origins at a state.
 struct Residuals {
     residual: Vec<f64>,
     origin: Vec<f64>,
-}
-
-fn residuals(p: &Problem<'_>, s: &State) -> Residuals {
-    let mut residual = vec![0.0; p.obs.len()];
-    let mut origin = vec![0.0; p.obs.groups.len()];
-    let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
-    for (gi, g) in p.obs.groups.iter().enumerate() {
-        let mut wsum = 0.0;
-        let mut wr = 0.0;
-        for i in g.range() {
-            let (r, _) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
-            let w = 1.0 / (p.sigma[i] * p.sigma[i]);
-            residual[i] = r;
-            wsum += w;
-            wr += w * r;
-        }
-        let rm = wr / wsum;
-        origin[gi] = rm;
-        for i in g.range() {
-            residual[i] -= rm;
-        }
-    }
-    Residuals { residual, origin }
 }
 
 /// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
@@ -1060,7 +1111,7 @@ mod tests {
             frames: Vec::new(),
         };
         update_directions(&prob, &mut st);
-        let fast = assemble(&prob, &st, true);
+        let fast = assemble(&prob, &st);
         let mut dense = Mat::<f64>::zeros(n, n);
         let (mut idx, mut val, mut eb) = (Vec::new(), Vec::new(), Vec::new());
         for (gi, g) in obs.groups.iter().enumerate() {

@@ -120,12 +120,43 @@ impl<'a> Chain<'a> {
     /// [`Chain::position`] together with, for each axis (indexed by [`Axis::index`]), what the
     /// exact Jacobian of the position needs ([`AxisFrame`]).
     pub fn position_with_frames(&self, x: &Point3<f64>, p: &Vector3<f64>) -> (Point3<f64>, [AxisFrame; 3]) {
+        self.frames_with(x, p, |a, q| self.errors(a, q))
+    }
+
+    /// [`Chain::position_with_frames`] with the basis values of each axis given (first
+    /// coefficient index and values, for a layout whose axes share one representation), so that
+    /// repeated evaluations at the same coordinates skip the basis evaluation.
+    pub fn position_with_frames_cached(
+        &self,
+        x: &Point3<f64>,
+        p: &Vector3<f64>,
+        basis: [(usize, &[f64]); 3],
+    ) -> (Point3<f64>, [AxisFrame; 3]) {
+        self.frames_with(x, p, |a, _| {
+            let (first, b) = basis[a.index()];
+            let offs = &self.offsets[a.index()];
+            let mut v = [0.0; 6];
+            for (m, vm) in v.iter_mut().enumerate() {
+                let c = &self.u[offs[m] + first..offs[m] + first + b.len()];
+                *vm = c.iter().zip(b).map(|(c, b)| c * b).sum();
+            }
+            (Vector3::new(v[0], v[1], v[2]), Vector3::new(v[3], v[4], v[5]))
+        })
+    }
+
+    #[inline]
+    fn frames_with(
+        &self,
+        x: &Point3<f64>,
+        p: &Vector3<f64>,
+        errors: impl Fn(Axis, f64) -> (Vector3<f64>, Vector3<f64>),
+    ) -> (Point3<f64>, [AxisFrame; 3]) {
         let mut frames = [AxisFrame::default(); 3];
         let mut v = *p;
         // Tool end first: the vector each axis carries.
         for &a in &self.order {
             let q = a.coord(x);
-            let (t, r) = self.errors(a, q);
+            let (t, r) = errors(a, q);
             let carried = rotate(&r, &v);
             frames[a.index()].carried = carried;
             frames[a.index()].r = r;

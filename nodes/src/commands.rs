@@ -221,13 +221,18 @@ pub fn solve_cmd(campaign_path: &Path, machine_path: &Path, out: &Path) -> Resul
     let machine = Machine::load(machine_path)?;
     let campaign = load_campaign(campaign_path)?;
     let pb = spinner(&format!("solving {} readings", campaign.readings.len()));
-    let solved = solve_campaign(
-        &campaign,
-        machine,
-        &campaign_path.display().to_string(),
-        provenance(campaign_path, machine_path)?,
-    )?;
+    let prov = provenance(campaign_path, machine_path)?;
+    let t0 = std::time::Instant::now();
+    let solved = solve_campaign(&campaign, machine, &campaign_path.display().to_string(), prov)?;
+    let dt = t0.elapsed();
     pb.finish_and_clear();
+    eprintln!(
+        "solved {} readings, {} parameters in {:.1} ms ({} iterations)",
+        solved.prepared.obs.len(),
+        solved.machine.layout.n_params,
+        dt.as_secs_f64() * 1e3,
+        solved.solution.iterations
+    );
     solved.file.write(out)?;
     print!("{}", summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign)));
     println!("\nwrote model to {}", out.display());
