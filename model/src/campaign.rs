@@ -192,6 +192,8 @@ pub struct Observations {
     pub t: Vec<f64>,
     pub velocity: Vec<Option<Vector3<f64>>>,
     pub air: Vec<Option<Air>>,
+    /// Recorded machine (scale) temperature.
+    pub machine_temp: Vec<Option<f64>>,
     /// Index of the originating reading in the campaign.
     pub reading: Vec<usize>,
     pub groups: Vec<LineGroup>,
@@ -328,6 +330,7 @@ pub fn prepare(campaign: &Campaign, travel: &Travel, expansion: &ScaleExpansion)
                 obs.t.push(r.t_s);
                 obs.velocity.push(r.velocity);
                 obs.air.push(r.air);
+                obs.machine_temp.push(r.machine_temp_c);
                 obs.reading.push(i);
             }
             let g = LineGroup { kind, station, line, segment: s as u32, start, end: obs.len() };

@@ -89,6 +89,8 @@ pub struct SolveOptions {
     pub rank_tolerance: f64,
     /// Initial station positions for tracer stations (by station id); closed-form otherwise.
     pub initial_stations: Vec<(u32, Point3<f64>)>,
+    /// Use only the line groups where this is true (cross-validation); all when `None`.
+    pub group_mask: Option<Vec<bool>>,
 }
 
 impl Default for SolveOptions {
@@ -101,6 +103,7 @@ impl Default for SolveOptions {
             covariance_scaling: CovarianceScaling::Birge,
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
+            group_mask: None,
         }
     }
 }
@@ -257,6 +260,8 @@ struct Problem<'a> {
     structure: Option<Structure>,
     /// Reference energy of each model column (see `reference_energy`).
     ref_energy: Vec<f64>,
+    /// Groups taking part in the fit ([`SolveOptions::group_mask`]).
+    active: Vec<bool>,
 }
 
 /// Per reading and axis: first coefficient and basis values.
@@ -311,6 +316,234 @@ pub fn solve(
     opts: &SolveOptions,
     effects: &[&dyn Effect],
 ) -> Result<Solution, SolveError> {
+    fit(layout, obs, opts, effects).map(Fit::into_solution)
+}
+
+/// A solved problem that keeps what is needed to test extensions of its model: the factorised,
+/// constrained normal equations at the solution.
+pub struct Fit<'a> {
+    prob: Problem<'a>,
+    state: State,
+    z: NullSpace,
+    factor: Reduced,
+    scale: Vec<f64>,
+    solution: Solution,
+    rows: std::cell::OnceCell<ModelRows>,
+}
+
+/// Score (nested-model) test of an [`Effect`] against a [`Fit`]: what adding its parameters to
+/// the model would change, computed exactly for the linearised problem through the Schur
+/// complement of the fitted normal equations (no refit).
+#[derive(Clone, Debug)]
+pub struct Score {
+    /// Reduction of the weighted chi-square.
+    pub delta_chi2: f64,
+    /// Number of new parameters the data can separate from the model (the rest alias with it).
+    pub rank: usize,
+    /// One-step estimates of the effect's parameters.
+    pub estimate: Vec<f64>,
+    /// Their covariance (a priori weights, scaled like the solution's covariance).
+    pub covariance: Mat<f64>,
+    /// The information the data carry about them beyond the model (the Schur complement) and
+    /// the gradient, for out-of-sample checks: the chi-square reduction of parameters `t` is
+    /// `2 t . gradient - t . information . t`.
+    pub information: Mat<f64>,
+    pub gradient: Vec<f64>,
+}
+
+impl Score {
+    /// Chi-square reduction these data would see from parameters `t` (e.g. fitted elsewhere).
+    pub fn gain(&self, t: &[f64]) -> f64 {
+        let k = t.len();
+        let mut quad = 0.0;
+        for i in 0..k {
+            for j in 0..k {
+                quad += t[i] * self.information[(i, j)] * t[j];
+            }
+        }
+        2.0 * t.iter().zip(&self.gradient).map(|(a, b)| a * b).sum::<f64>() - quad
+    }
+}
+
+impl<'a> Fit<'a> {
+    pub fn solution(&self) -> &Solution {
+        &self.solution
+    }
+
+    pub fn into_solution(self) -> Solution {
+        self.solution
+    }
+
+    /// Fitted direction of each group (beams; zero for ranges).
+    pub fn directions(&self) -> &[Vector3<f64>] {
+        &self.state.dirs
+    }
+
+    /// Actual reflector position of every reading at the solution.
+    pub fn actual(&self) -> &[Point3<f64>] {
+        &self.state.actual
+    }
+
+    /// Tests `effect` as an extension of the fitted model.
+    pub fn score(&self, effect: &dyn Effect) -> Score {
+        self.score_masked(effect, None)
+    }
+
+    /// [`Fit::score`] restricted to the groups where `mask[group]` is true (cross-validation).
+    pub fn score_masked(&self, effect: &dyn Effect, mask: Option<&[bool]>) -> Score {
+        let p = &self.prob;
+        let s = &self.state;
+        let rows = self.rows.get_or_init(|| ModelRows::new(p, s));
+        let n = p.dims.n();
+        let k = effect.param_names().len();
+        let mut b = Mat::<f64>::zeros(n, k);
+        let mut g2 = Mat::<f64>::zeros(k, k);
+        let mut c = vec![0.0; k];
+        let mut reg = vec![0.0; k];
+        let mut nz: Vec<usize> = Vec::new();
+        let mut sa = vec![0.0; n];
+        let mut touched: Vec<usize> = Vec::new();
+        let mut is_touched = vec![false; n];
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            if mask.is_some_and(|m| !m[gi]) {
+                continue;
+            }
+            let mut wsum = 0.0;
+            let mut sg = vec![0.0; k];
+            for i in g.range() {
+                let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+                wsum += w;
+                let (ri, rv) = rows.row(i);
+                for (&col, &v) in ri.iter().zip(rv) {
+                    if !is_touched[col] {
+                        is_touched[col] = true;
+                        touched.push(col);
+                    }
+                    sa[col] += w * v;
+                }
+                let ctx = ObsContext { obs: p.obs, i, group: g, direction: rows.dirs[i], actual: s.actual[i] };
+                reg.iter_mut().for_each(|v| *v = 0.0);
+                effect.regressors(&ctx, &mut reg);
+                nz.clear();
+                nz.extend((0..k).filter(|&j| reg[j] != 0.0));
+                if nz.is_empty() {
+                    continue;
+                }
+                let r = self.solution.residuals[i];
+                for &j in &nz {
+                    sg[j] += w * reg[j];
+                    c[j] += w * reg[j] * r;
+                    for &l in &nz {
+                        g2[(j, l)] += w * reg[j] * reg[l];
+                    }
+                }
+                for (&col, &v) in ri.iter().zip(rv) {
+                    for &j in &nz {
+                        b[(col, j)] += w * v * reg[j];
+                    }
+                }
+            }
+            // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
+            let sgn: Vec<usize> = (0..k).filter(|&j| sg[j] != 0.0).collect();
+            for &col in &touched {
+                for &j in &sgn {
+                    b[(col, j)] -= sa[col] * sg[j] / wsum;
+                }
+                sa[col] = 0.0;
+                is_touched[col] = false;
+            }
+            touched.clear();
+            for &j in &sgn {
+                for &l in &sgn {
+                    g2[(j, l)] -= sg[j] * sg[l] / wsum;
+                }
+            }
+        }
+        self.schur_score(&b, &g2, &c)
+    }
+
+    /// Solves the Schur complement of the fitted model for an extension with cross products
+    /// `b` (model x extension), `g2` (extension x extension) and gradient `c`.
+    fn schur_score(&self, b: &Mat<f64>, g2: &Mat<f64>, c: &[f64]) -> Score {
+        let n = b.nrows();
+        let k = b.ncols();
+        // Schur complement against the model: S = G - B^T N+ B, with N+ the constrained inverse.
+        let bs = Mat::from_fn(n, k, |i, j| b[(i, j)] / self.scale[i]);
+        let y = self.z.zt(&bs);
+        let mut x = y.clone();
+        self.factor.llt.solve_in_place(x.as_mut());
+        let q = y.transpose() * &x;
+        let schur = Mat::from_fn(k, k, |i, j| 0.5 * ((g2[(i, j)] - q[(i, j)]) + (g2[(j, i)] - q[(j, i)])));
+        // Columns that alias completely with the model (their Schur diagonal vanishes relative to
+        // their own energy) carry no new information; the rest by a pseudo-inverse.
+        let alive: Vec<bool> = (0..k).map(|i| schur[(i, i)] > 1e-10 * g2[(i, i)].max(f64::MIN_POSITIVE)).collect();
+        let d: Vec<f64> = (0..k).map(|i| if alive[i] { schur[(i, i)].sqrt() } else { 1.0 }).collect();
+        let sn = Mat::from_fn(k, k, |i, j| if alive[i] && alive[j] { schur[(i, j)] / (d[i] * d[j]) } else { 0.0 });
+        let (mut pinv, mut rank) = (Mat::<f64>::zeros(k, k), 0);
+        if k > 0 {
+            if let Ok(eig) = sn.self_adjoint_eigen(Side::Lower) {
+                let lam: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
+                let lmax = lam.iter().cloned().fold(0.0, f64::max);
+                let u = eig.U();
+                for (m, &l) in lam.iter().enumerate() {
+                    if l > 1e-9 * lmax.max(f64::MIN_POSITIVE) {
+                        rank += 1;
+                        for i in 0..k {
+                            for j in 0..k {
+                                pinv[(i, j)] += u[(i, m)] * u[(j, m)] / l;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let pinv = Mat::from_fn(k, k, |i, j| pinv[(i, j)] / (d[i] * d[j]));
+        let estimate: Vec<f64> = (0..k).map(|i| (0..k).map(|j| pinv[(i, j)] * c[j]).sum()).collect();
+        let delta_chi2 = estimate.iter().zip(c).map(|(e, c)| e * c).sum::<f64>().max(0.0);
+        let factor = self.solution.stats.variance_factor.max(1.0);
+        let covariance = Mat::from_fn(k, k, |i, j| pinv[(i, j)] * factor);
+        Score { delta_chi2, rank, estimate, covariance, information: schur, gradient: c.to_vec() }
+    }
+}
+
+/// The model rows of every reading at a fit's solution, kept for repeated extension tests.
+struct ModelRows {
+    start: Vec<usize>,
+    idx: Vec<usize>,
+    val: Vec<f64>,
+    dirs: Vec<Vector3<f64>>,
+}
+
+impl ModelRows {
+    fn new(p: &Problem<'_>, s: &State) -> ModelRows {
+        let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
+        let mut out =
+            ModelRows { start: vec![0], idx: Vec::new(), val: Vec::new(), dirs: vec![Vector3::zeros(); p.obs.len()] };
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            for i in g.range() {
+                let (_, dir) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
+                out.dirs[i] = dir;
+                out.idx.extend_from_slice(&idx);
+                out.val.extend_from_slice(&val);
+                out.start.push(out.idx.len());
+            }
+        }
+        // Readings are stored in group order, which is reading order within Observations.
+        out
+    }
+
+    fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        (&self.idx[self.start[i]..self.start[i + 1]], &self.val[self.start[i]..self.start[i + 1]])
+    }
+}
+
+/// Solves and keeps the [`Fit`] for extension tests (see [`Fit::score`]).
+pub fn fit<'a>(
+    layout: &'a ModelLayout,
+    obs: &'a Observations,
+    opts: &SolveOptions,
+    effects: &'a [&'a dyn Effect],
+) -> Result<Fit<'a>, SolveError> {
     if obs.is_empty() || obs.groups.is_empty() {
         return Err(SolveError::NoObservations);
     }
@@ -339,6 +572,16 @@ pub fn solve(
         })
         .collect();
     let structure = Structure::new(layout, obs);
+    let mut kind_of = vec![ObsKind::Beam; obs.len()];
+    for g in &obs.groups {
+        for i in g.range() {
+            kind_of[i] = g.kind;
+        }
+    }
+    let active: Vec<bool> = match &opts.group_mask {
+        Some(m) if m.len() == obs.groups.len() => m.clone(),
+        _ => vec![true; obs.groups.len()],
+    };
 
     let mut warnings = Vec::new();
     // Initial state: zero errors, closed-form stations.
@@ -359,9 +602,7 @@ pub fn solve(
             }
         }
     }
-    let sigma: Vec<f64> = (0..obs.len())
-        .map(|i| opts.noise.sigma(obs.groups.iter().find(|g| g.range().contains(&i)).unwrap().kind, ranges_at_init[i]))
-        .collect();
+    let sigma: Vec<f64> = (0..obs.len()).map(|i| opts.noise.sigma(kind_of[i], ranges_at_init[i])).collect();
     let prob = Problem {
         layout,
         gauge: opts.gauge,
@@ -370,7 +611,8 @@ pub fn solve(
         effects,
         group_station,
         dir_owner,
-        ref_energy: reference_energy(layout, obs, &sigma),
+        ref_energy: reference_energy(layout, obs, &sigma, &active),
+        active,
         sigma,
         structure,
     };
@@ -390,17 +632,8 @@ pub fn solve(
     // campaign), the analysis is repeated with a looser tolerance.
     let mut tol = opts.rank_tolerance;
     let mut f0 = f0;
-    let (ident, z, mut factor) = loop {
-        let ident = identify::analyse(
-            layout,
-            &prob_summary(&prob),
-            &first.n,
-            &m0,
-            f0.as_ref().map(|f| &f.llt),
-            &gauge_z,
-            &scale,
-            tol,
-        );
+    let (ident, z, factor) = loop {
+        let ident = analyse_at(&prob, &state, &first.n, &m0, f0.as_ref().map(|f| &f.llt), &gauge_z, &scale, tol);
         if ident.extra_constraints.nrows() == 0 {
             if let Some(f) = f0.take() {
                 break (ident, NullSpace::new(&cons, &scale), f);
@@ -422,69 +655,61 @@ pub fn solve(
     warnings.extend(ident.report.warnings.iter().cloned());
 
     let nonlinear = !stations.is_empty();
-    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
     let mut normal = first;
-    let mut converged = false;
-    let mut iterations = 0;
-    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
-    // so for beam-only problems the normal matrix of the first linearisation is kept and only
-    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
-    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
-    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
-    // refreshed matrix that fails to factorise is not adopted).
-    let mut last_step = f64::INFINITY;
-    let mut stalls = 0;
-    for it in 0..opts.max_iterations {
-        iterations = it + 1;
-        let step = if nonlinear {
-            match Reduced::new(&normal, &z, &scale, mu) {
-                Ok(r) => reduced_step(&r, &normal, &z, &scale),
-                Err(_) => {
-                    mu = (mu * 10.0).max(1e-6);
-                    continue;
+    let d0 = state.d.clone();
+    let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+    let (mut z, mut scale, mut ident) = (z, scale, ident);
+    // Ranges are nonlinear: what the data determine depends on where the stations are, which
+    // is only known at the solution (e.g. coplanar stations are only recognised once located).
+    // Analyse again with the stations as estimated and the machine errors at zero: what the
+    // geometry determines to first order. (At the estimated errors a direction unobservable to
+    // first order can look weakly observed through second-order terms, with a sign ambiguity: a
+    // ranged point in the stations' plane moved by +e or -e normal to it reads the same.) If
+    // this finds further undetermined directions, remove them from the change since the start
+    // (they do not change the fit to first order) and iterate again under the new constraints.
+    if nonlinear {
+        let mut nominal = state.clone();
+        nominal.d[..layout.n_params].fill(0.0);
+        update_directions(&prob, &mut nominal);
+        let normal_nom = assemble(&prob, &nominal);
+        let scale_nom = column_scale(&normal_nom.n);
+        let z_nom = NullSpace::new(&cons, &scale_nom);
+        let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom);
+        let ident_f = analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, None, &z_nom, &scale_nom, opts.rank_tolerance);
+        if ident_f.report.extra_null_dim > ident.report.extra_null_dim {
+            let w = &ident_f.extra_constraints;
+            for r in 0..w.nrows() {
+                // Rows are W^T S (unscaled); W has orthonormal columns in scaled coordinates.
+                let along: f64 = (0..n).map(|k| w[(r, k)] * (state.d[k] - d0[k])).sum();
+                for k in 0..n {
+                    state.d[k] -= along * w[(r, k)] / (scale_nom[k] * scale_nom[k]);
                 }
             }
+            update_directions(&prob, &mut state);
+            normal = assemble(&prob, &state);
+            scale = column_scale(&normal.n);
+            z = NullSpace::new(&stack_rows(&cons, w), &scale);
+            let factor =
+                Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+            lm = LmRun {
+                iterations: lm.iterations + again.iterations,
+                warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
+                ..again
+            };
+            for w in &ident_f.report.warnings {
+                if !warnings.contains(w) {
+                    warnings.push(w.clone());
+                }
+            }
+            ident = ident_f;
         } else {
-            reduced_step(&factor, &normal, &z, &scale)
-        };
-        let mut trial = state.clone();
-        for k in 0..n {
-            trial.d[k] += step.delta[k];
-        }
-        update_directions(&prob, &mut trial);
-        let ratio = step.max_sigma_ratio / last_step;
-        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
-        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
-        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
-        let trial_normal = if refresh { assemble(&prob, &trial) } else { gradient(&prob, &trial) };
-        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
-            mu = (mu * 10.0).max(1e-6);
-            if mu > 1e12 {
-                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
-                break;
-            }
-            continue;
-        }
-        mu *= 0.1;
-        state = trial;
-        normal = trial_normal;
-        if refresh && !nonlinear {
-            match Reduced::new(&normal, &z, &scale, 0.0) {
-                Ok(r) => factor = r,
-                Err(_) => warnings
-                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
-            }
-        }
-        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
-        // row while already far below the uncertainty: the floating-point floor (the readings'
-        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
-        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
-        last_step = step.max_sigma_ratio;
-        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
-            converged = true;
-            break;
+            // Same null space: report the analysis with the stations as located.
+            ident.report = ident_f.report;
         }
     }
+    warnings.extend(lm.warnings.iter().cloned());
+    let (iterations, converged, mut factor) = (lm.iterations, lm.converged, lm.factor);
     if !converged {
         warnings.push(format!("the estimator did not converge in {} iterations", iterations));
     }
@@ -499,16 +724,17 @@ pub fn solve(
         factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
     }
     let cov_scaled = z.embed(&factor.llt.inverse());
-    let n_obs = obs.len();
+    let active_groups: Vec<usize> = (0..obs.groups.len()).filter(|&g| prob.active[g]).collect();
+    let n_obs: usize = active_groups.iter().map(|&g| obs.groups[g].len()).sum();
     let n_free = z.dim();
-    let dof = n_obs.saturating_sub(n_free + obs.groups.len()).max(1);
+    let dof = n_obs.saturating_sub(n_free + active_groups.len()).max(1);
     let chi2 = normal.cost;
     let vf = chi2 / dof as f64;
-    let factor = match opts.covariance_scaling {
+    let cov_factor = match opts.covariance_scaling {
         CovarianceScaling::APriori => 1.0,
         CovarianceScaling::Birge => vf.max(1.0),
     };
-    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * factor);
+    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * cov_factor);
 
     let n_u = layout.n_params;
     let covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
@@ -558,9 +784,12 @@ pub fn solve(
             }
         })
         .collect();
-    let rms = (final_res.residual.iter().map(|v| v * v).sum::<f64>() / n_obs as f64).sqrt();
+    let rms =
+        (active_groups.iter().flat_map(|&g| obs.groups[g].range()).map(|i| final_res.residual[i].powi(2)).sum::<f64>()
+            / n_obs.max(1) as f64)
+            .sqrt();
     let model = ErrorModel { layout: layout.clone(), u: state.d[..n_u].to_vec() };
-    Ok(Solution {
+    let solution = Solution {
         model,
         covariance,
         stations: stations_out,
@@ -574,7 +803,104 @@ pub fn solve(
         converged,
         gauge: opts.gauge,
         warnings,
-    })
+    };
+    Ok(Fit { prob, state, z, factor, scale, solution, rows: std::cell::OnceCell::new() })
+}
+
+/// Outcome of one run of [`levenberg_marquardt`].
+struct LmRun {
+    iterations: usize,
+    converged: bool,
+    /// Factorisation of the reduced matrix last in use (the frozen one for beams).
+    factor: Reduced,
+    warnings: Vec<String>,
+}
+
+/// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
+/// constraints from `state` and its normal equations `normal`, both updated in place; `factor`
+/// is the factorisation of the reduced matrix to start from.
+#[allow(clippy::too_many_arguments)]
+fn levenberg_marquardt(
+    prob: &Problem<'_>,
+    state: &mut State,
+    normal: &mut Normal,
+    z: &NullSpace,
+    scale: &[f64],
+    mut factor: Reduced,
+    opts: &SolveOptions,
+    nonlinear: bool,
+) -> LmRun {
+    let n = prob.dims.n();
+    let mut warnings = Vec::new();
+    let mut mu = if nonlinear { 1e-4 } else { 0.0 };
+    let mut converged = false;
+    let mut iterations = 0;
+    // Beam rows change between iterations only through the beam directions (by ~1e-5 rad),
+    // so for beam-only problems the normal matrix of the first linearisation is kept and only
+    // the gradient is refreshed; the matrix is re-assembled once at the solution for the
+    // covariance. Ranges are nonlinear: full Levenberg-Marquardt.
+    // `factor` is the factorisation of the reduced matrix in use; it always stays valid (a
+    // refreshed matrix that fails to factorise is not adopted).
+    let mut last_step = f64::INFINITY;
+    let mut stalls = 0;
+    for it in 0..opts.max_iterations {
+        iterations = it + 1;
+        let step = if nonlinear {
+            match Reduced::new(normal, z, scale, mu) {
+                Ok(r) => reduced_step(&r, normal, z, scale),
+                Err(_) => {
+                    mu = (mu * 10.0).max(1e-6);
+                    continue;
+                }
+            }
+        } else {
+            reduced_step(&factor, normal, z, scale)
+        };
+        let mut trial = state.clone();
+        for k in 0..n {
+            trial.d[k] += step.delta[k];
+        }
+        update_directions(prob, &mut trial);
+        let ratio = step.max_sigma_ratio / last_step;
+        // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
+        // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
+        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let trial_normal = if refresh { assemble(prob, &trial) } else { gradient(prob, &trial) };
+        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+            if step.max_sigma_ratio < opts.tolerance {
+                // A negligible step that does not lower the cost: the minimum is reached to
+                // round-off; raising the damping would only spend iterations.
+                converged = true;
+                break;
+            }
+            mu = (mu * 10.0).max(1e-6);
+            if mu > 1e12 {
+                warnings.push("Levenberg-Marquardt could not reduce the cost further".into());
+                break;
+            }
+            continue;
+        }
+        mu *= 0.1;
+        *state = trial;
+        *normal = trial_normal;
+        if refresh && !nonlinear {
+            match Reduced::new(normal, z, scale, 0.0) {
+                Ok(r) => factor = r,
+                Err(_) => warnings
+                    .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
+            }
+        }
+        // Converged when the step is negligible, or when steps have stopped shrinking twice in a
+        // row while already far below the uncertainty: the floating-point floor (the readings'
+        // rounding, ~1e-16 m, amplified by the squared conditioning: 1e-5 to 1e-3 sigma).
+        stalls = if ratio > 0.5 { stalls + 1 } else { 0 };
+        last_step = step.max_sigma_ratio;
+        if step.max_sigma_ratio < opts.tolerance || (stalls >= 2 && step.max_sigma_ratio < 1e-2) {
+            converged = true;
+            break;
+        }
+    }
+    LmRun { iterations, converged, factor, warnings }
 }
 
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {
@@ -619,7 +945,57 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
         n_effect_params: p.dims.n_e,
         effect_col: p.dims.effect_col(),
         station_col: p.dims.n_u,
+        axis_positions: identify::DataSummary::positions_of(&p.obs.x),
+        readings_in_station_plane: 0,
     }
+}
+
+/// Geometry of the tracer stations at the current iterate and of the points they measured.
+fn tracer_geometry(p: &Problem<'_>, s: &State) -> crate::station_geometry::StationGeometry {
+    let stations: Vec<Point3<f64>> = (0..p.dims.stations.len())
+        .map(|k| {
+            let c = p.dims.station_col(k);
+            Point3::new(s.d[c], s.d[c + 1], s.d[c + 2])
+        })
+        .collect();
+    let points: Vec<Point3<f64>> =
+        p.obs.groups_of(ObsKind::Range).flat_map(|(_, g)| g.range()).map(|i| p.obs.x[i] + p.obs.p[i]).collect();
+    crate::station_geometry::assess(&stations, &points)
+}
+
+/// Identifiability analysis at a linearisation (`identify::analyse`), with the geometry of the
+/// tracer stations of that state added to the report.
+#[allow(clippy::too_many_arguments)]
+fn analyse_at(
+    prob: &Problem<'_>,
+    state: &State,
+    n: &Mat<f64>,
+    m: &Mat<f64>,
+    m_llt: Option<&faer::linalg::solvers::Llt<f64>>,
+    z: &NullSpace,
+    scale: &[f64],
+    tol: f64,
+) -> identify::Analysis {
+    let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
+    let mut summary = prob_summary(prob);
+    summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
+    let mut ident = identify::analyse(prob.layout, &summary, n, m, m_llt, z, scale, tol);
+    if let Some(geometry) = geometry {
+        let said = geometry.statements();
+        if !said.is_empty() {
+            ident.report.warnings.push(format!(
+                "tracer station geometry: {} station(s){} (see the identifiability report)",
+                geometry.n_stations,
+                if geometry.coplanar && geometry.n_stations >= crate::station_geometry::MIN_STATIONS {
+                    ", coplanar"
+                } else {
+                    ""
+                }
+            ));
+        }
+        ident.report.statements.extend(said);
+    }
+    ident
 }
 
 /// Actual reflector position of reading `i` at the current iterate.
@@ -788,6 +1164,9 @@ fn gradient(p: &Problem<'_>, s: &State) -> Normal {
     let mut dirs: Vec<Vector3<f64>> = Vec::new();
     let mut regs: Vec<f64> = Vec::new();
     for (gi, g) in p.obs.groups.iter().enumerate() {
+        if !p.active[gi] {
+            continue;
+        }
         dirs.clear();
         regs.clear();
         let (mut wsum, mut wr) = (0.0, 0.0);
@@ -842,6 +1221,9 @@ fn assemble(p: &Problem<'_>, s: &State) -> Normal {
     let (mut gidx, mut gval): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
     let mut cost = 0.0;
     for (gi, g) in p.obs.groups.iter().enumerate() {
+        if !p.active[gi] {
+            continue;
+        }
         rows.clear();
         gidx.clear();
         gval.clear();
@@ -1022,14 +1404,14 @@ const NOMINAL_FLOOR: f64 = 1e-10;
 /// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
 /// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
 /// largest probe offset) or the axis coordinate (squareness), squared and weighted.
-fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64]) -> Vec<f64> {
+fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], active: &[bool]) -> Vec<f64> {
     use crate::functions::{ErrorFunction, Motion, Squareness};
     let t = &layout.travel;
     let diag =
         (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
     let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
     let mut e = vec![0.0; layout.n_params];
-    for i in 0..obs.len() {
+    for i in obs.groups.iter().enumerate().filter(|(g, _)| active[*g]).flat_map(|(_, g)| g.range()) {
         let w = 1.0 / (sigma[i] * sigma[i]);
         for f in ErrorFunction::all() {
             let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
@@ -1102,6 +1484,7 @@ mod tests {
             sigma: vec![1e-7; obs.len()],
             structure: Structure::new(&layout, &obs),
             ref_energy: Vec::new(),
+            active: vec![true; obs.groups.len()],
         };
         assert!(prob.structure.is_some());
         let mut st = State {
@@ -1150,6 +1533,97 @@ mod tests {
                     (fast.n[(i, j)] - dense[(i, j)]).abs() < 1e-9 * scale,
                     "({i}, {j}): {} vs {}",
                     fast.n[(i, j)],
+                    dense[(i, j)]
+                );
+            }
+        }
+    }
+
+    /// The structured (tiled) assembly equals the dense normal matrix `sum (a - mean)(a -
+    /// mean)^T` per group for tracer ranges too, with rows that carry exact zeros: readings
+    /// exactly at table nodes and at z = 0, where the lever arm of X vanishes (the paper's
+    /// tracer path is full of both).
+    #[test]
+    fn range_assembly_matches_dense_with_exact_zeros() {
+        use crate::campaign::LineGroup;
+        let layout = ModelLayout::uniform(
+            Topology::parse("FYXZ").unwrap(),
+            Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]),
+            Representation::Table { nodes: 11 },
+        );
+        let q = [Point3::new(-0.1, -0.6, -0.8), Point3::new(0.8, 0.1, -0.6)];
+        let mut obs = Observations::default();
+        for (s, qq) in q.iter().enumerate() {
+            let start = obs.len();
+            for i in 0..=20 {
+                let x = Point3::new(0.035 * i as f64, -0.05 * (i % 11) as f64, -0.35 * (i % 3) as f64);
+                obs.x.push(x);
+                obs.p.push(Vector3::zeros());
+                obs.l.push((x - qq).norm());
+                obs.t.push(0.0);
+                obs.velocity.push(None);
+                obs.air.push(None);
+                obs.reading.push(obs.reading.len());
+            }
+            let g = LineGroup { kind: ObsKind::Range, station: s as u32, line: 0, segment: 0, start, end: obs.len() };
+            obs.groups.push(g);
+        }
+        let stations = obs.stations(ObsKind::Range);
+        let prob = Problem {
+            layout: &layout,
+            gauge: Gauge::Datum,
+            obs: &obs,
+            dims: Dims { n_u: layout.n_params, stations, n_e: 0 },
+            effects: &[],
+            group_station: vec![0, 1],
+            dir_owner: vec![0, 1],
+            sigma: vec![1.0; obs.len()],
+            structure: Structure::new(&layout, &obs),
+            ref_energy: Vec::new(),
+            active: vec![true; obs.groups.len()],
+        };
+        assert!(prob.structure.is_some());
+        let n = prob.dims.n();
+        let mut d = vec![0.0; n];
+        for (s, qq) in q.iter().enumerate() {
+            for k in 0..3 {
+                d[prob.dims.station_col(s) + k] = qq[k];
+            }
+        }
+        let mut state = State { d, dirs: vec![Vector3::zeros(); 2], actual: Vec::new(), frames: Vec::new() };
+        update_directions(&prob, &mut state);
+        let got = assemble(&prob, &state).n;
+        let mut dense = Mat::<f64>::zeros(n, n);
+        for (s, qq) in q.iter().enumerate() {
+            let rows: Vec<Vec<f64>> = obs.groups[s]
+                .range()
+                .map(|i| {
+                    let dir = (obs.x[i] - qq).normalize();
+                    let mut r = vec![0.0; n];
+                    for (k, v) in layout.sensitivity(&obs.x[i], &obs.p[i]).project(&dir) {
+                        r[k] += v;
+                    }
+                    for k in 0..3 {
+                        r[prob.dims.station_col(s) + k] = -dir[k];
+                    }
+                    r
+                })
+                .collect();
+            let mean: Vec<f64> = (0..n).map(|c| rows.iter().map(|r| r[c]).sum::<f64>() / rows.len() as f64).collect();
+            for r in &rows {
+                for i in 0..n {
+                    for j in 0..n {
+                        dense[(i, j)] += (r[i] - mean[i]) * (r[j] - mean[j]);
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            for j in 0..n {
+                assert!(
+                    (got[(i, j)] - dense[(i, j)]).abs() < 1e-12,
+                    "({i}, {j}): {} vs {}",
+                    got[(i, j)],
                     dense[(i, j)]
                 );
             }

@@ -31,6 +31,58 @@ pub struct DataSummary {
     pub station_col: usize,
     /// Range of the indicated coordinates of the readings, per axis.
     pub coverage: [[f64; 2]; 3],
+    /// Distinct positions of each axis (X, Y, Z) where the data have readings, sorted, metres.
+    pub axis_positions: [Vec<f64>; 3],
+    /// Tracer readings that lie in the common plane of coplanar stations (see
+    /// [`crate::station_geometry`]); 0 when the stations are not coplanar.
+    pub readings_in_station_plane: usize,
+}
+
+impl DataSummary {
+    /// Distinct, sorted axis positions of a set of indicated points (to 0.1 um).
+    pub fn positions_of(points: &[nalgebra::Point3<f64>]) -> [Vec<f64>; 3] {
+        std::array::from_fn(|a| {
+            let mut v: Vec<f64> = points.iter().map(|p| p[a]).collect();
+            v.sort_by(|x, y| x.total_cmp(y));
+            v.dedup_by(|x, y| (*x - *y).abs() < 1e-7);
+            v
+        })
+    }
+}
+
+/// Whether the readings leave part of a function's basis without data: a local basis
+/// function (table node, B-spline) whose support holds no reading, or a global basis with fewer
+/// distinct positions than coefficients. `None` when positions are not known.
+fn coverage_gap(layout: &ModelLayout, f: ErrorFunction, positions: &[f64]) -> Option<bool> {
+    if positions.is_empty() {
+        return None;
+    }
+    let b = layout.basis(f);
+    let n = b.n_coeffs();
+    match b.repr {
+        crate::repr::Representation::Table { .. } | crate::repr::Representation::BSpline { .. } => {
+            let mut seen = vec![false; n];
+            for &q in positions {
+                b.visit(q, false, |i, v| seen[i] |= v.abs() > 1e-9);
+            }
+            Some(seen.iter().any(|s| !s))
+        }
+        _ => Some(positions.len() < n),
+    }
+}
+
+/// Positions as a short text in millimetres: all of them when few, else the span and count.
+fn positions_text(positions: &[f64]) -> String {
+    if positions.len() <= 6 {
+        positions.iter().map(|q| format!("{:.0}", q * 1e3)).collect::<Vec<_>>().join(", ") + " mm"
+    } else {
+        format!(
+            "{} positions from {:.0} to {:.0} mm",
+            positions.len(),
+            positions[0] * 1e3,
+            positions[positions.len() - 1] * 1e3
+        )
+    }
 }
 
 /// The identifiability report of a solve.
@@ -371,23 +423,58 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
                 format!("rotations of the last axis ({}) act only through the probe offset, and the probe offsets are zero or parallel to this rotation", last.letter())
             }
             Unit::F(f) if f.motion == Motion::Rotation => format!("its lever arm (the axes {} carries plus the probe offset) is parallel to its rotation axis everywhere the data go", f.axis.letter()),
+            Unit::F(f) if summary.axis_positions[f.axis.index()].len() == 1 => {
+                format!("axis {} does not move in these data", f.axis.letter())
+            }
             Unit::F(f) => format!("no beam or path has a component along {} while {} moves", f.component.letter(), f.axis.letter()),
             Unit::S(_) => "no data constrain this orientation".into(),
             Unit::Other(_) => "no reading depends on it".into(),
         };
         st.push(format!("{} ({}) cannot be identified from these data: {}.", name(&units[i]), desc(&units[i]), reason));
     }
-    for g in groups.iter().filter(|g| g.len() == 1) {
+    // Functions that are undetermined only because the data visit their axis at a few positions
+    // (gaps inside the covered range): one statement per axis.
+    let is_station = |u: &Unit| matches!(u, Unit::Other(s) if s.starts_with("station"));
+    let partial = |g: &Vec<usize>| -> Option<crate::axis::Axis> {
+        match (g.len(), &units[g[0]]) {
+            (1, Unit::F(f)) if coverage_gap(layout, *f, &summary.axis_positions[f.axis.index()]) == Some(true) => {
+                Some(f.axis)
+            }
+            _ => None,
+        }
+    };
+    for a in crate::axis::Axis::ALL {
+        let fs: Vec<String> = groups.iter().filter(|g| partial(g) == Some(a)).map(|g| name(&units[g[0]])).collect();
+        if !fs.is_empty() {
+            st.push(format!(
+                "{} are observed only where the data visit axis {} ({}): their values between those positions are not determined and are set by the minimum-norm choice, so predictions there are not calibrated; move {} across its whole travel (e.g. the 12 edges of the working cuboid) to determine them.",
+                fs.join(", "),
+                a.letter(),
+                positions_text(&summary.axis_positions[a.index()]),
+                a.letter()
+            ));
+        }
+    }
+    for g in groups.iter().filter(|g| g.len() == 1 && partial(g).is_none()) {
         let i = g[0];
         let axis_note = match &units[i] {
             Unit::F(f) => coverage_note(summary, layout, f.axis),
             _ => String::new(),
         };
+        let plane_note = if summary.readings_in_station_plane > 0 {
+            format!(
+                "; {} tracer readings lie in the plane of the coplanar stations, where no range sees the error normal to that plane (see below)",
+                summary.readings_in_station_plane
+            )
+        } else {
+            String::new()
+        };
         st.push(format!(
-            "{} ({}) is only partly determined: part of its shape along the travel is not observed{}.",
+            "{} ({}) is only partly determined: part of its shape along the travel is not observed{}{}.",
             name(&units[i]),
             desc(&units[i]),
-            axis_note
+            axis_note,
+            plane_note
         ));
     }
     for g in groups.iter().filter(|g| g.len() > 1) {
@@ -401,8 +488,18 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
                 last.letter(),
                 last.letter()
             )
+        } else if g.iter().any(|&i| is_station(&units[i])) {
+            format!(
+                "; the positions of the tracer stations cannot be separated from these functions with {} station(s) in this geometry: the tracer method needs at least 4 stations, not coplanar, seeing every point of the path",
+                summary.n_stations
+            )
         } else if g.iter().any(|&i| matches!(units[i], Unit::Other(_))) {
             "; the effect's signature is indistinguishable from these error functions in this campaign".into()
+        } else if summary.readings_in_station_plane > 0 {
+            format!(
+                "; {} tracer readings lie in the plane of the coplanar stations, where no range sees the error normal to that plane (see below)",
+                summary.readings_in_station_plane
+            )
         } else {
             "; more beam directions or probe offsets are needed to separate them".into()
         };

@@ -23,6 +23,7 @@
 pub mod axis;
 pub mod beam;
 pub mod campaign;
+pub mod diagnose;
 pub mod environment;
 pub mod estimator;
 pub mod functions;
@@ -35,7 +36,9 @@ mod nullspace;
 pub mod predict;
 pub mod range;
 pub mod repr;
+pub mod station_geometry;
 pub mod topology;
+pub mod validate;
 
 pub use axis::{Axis, Travel};
 pub use campaign::{Campaign, ObsKind, Observations, Reading};

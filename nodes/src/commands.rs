@@ -54,7 +54,11 @@ pub fn sim_config(machine: &Machine, plan: Plan, seed: u64) -> SimConfig {
     let s = &machine.file.simulation;
     // The truth has its own random stream so that changing the noise does not change it.
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5452_5554_485f_5345);
-    let truth = random_truth(machine.truth_layout(), &s.truth, &mut rng);
+    let truth = match s.truth_preset {
+        // Validated by the machine file: the only preset is the paper's machine.
+        Some(_) => volcal_sim::paper::truth(),
+        None => random_truth(machine.truth_layout(), &s.truth, &mut rng),
+    };
     SimConfig {
         machine: VirtualMachine { truth, repeatability_m: s.repeatability_m, centring_m: s.centring_m },
         interferometer: s.interferometer.clone(),

@@ -50,6 +50,9 @@ pub struct SimulationSpec {
     pub truth: TruthSpec,
     /// Representation of the truth functions (default: the solver's, i.e. truth inside it).
     pub truth_representation: Option<Representation>,
+    /// A named truth instead of a random one: `han2021_table2`, the functions of Han et al.
+    /// (2021) with the ranges of its Table 2 (needs the paper's topology and travel).
+    pub truth_preset: Option<String>,
     /// Machine repeatability per axis, metres.
     pub repeatability_m: f64,
     /// Photoreceiver centring error, metres.
@@ -65,6 +68,7 @@ impl Default for SimulationSpec {
         SimulationSpec {
             truth: TruthSpec::default(),
             truth_representation: None,
+            truth_preset: None,
             repeatability_m: 0.2e-6,
             centring_m: 1e-6,
             interferometer: Interferometer::default(),
@@ -178,6 +182,9 @@ impl Machine {
                 ScaleExpansion { alpha_per_k: [e.x, e.y, e.z], fixed_point_m: e.fixed_point_m.unwrap_or([0.0; 3]) }
             }
         };
+        if let Some(p) = &file.simulation.truth_preset {
+            check_truth_preset(p, &topology, &travel)?;
+        }
         let layout = ModelLayout::new(topology, travel, reprs);
         Ok(Machine { file, layout, gauge, noise, expansion })
     }
@@ -201,6 +208,30 @@ impl Machine {
     }
 }
 
+/// Name of the truth preset of the paper's Table 2.
+pub const PRESET_HAN2021: &str = "han2021_table2";
+
+/// A truth preset exists and fits the machine.
+fn check_truth_preset(name: &str, topology: &Topology, travel: &Travel) -> Result<()> {
+    if name != PRESET_HAN2021 {
+        bail!("field simulation.truth_preset: unknown preset {name:?} (known: {PRESET_HAN2021})");
+    }
+    let paper = volcal_sim::paper::travel();
+    if topology.to_string() != volcal_sim::paper::TOPOLOGY || travel.ranges != paper.ranges {
+        bail!(
+            "field simulation.truth_preset: {PRESET_HAN2021} is the paper's machine: it needs topology {} and travel x {:?}, y {:?}, z {:?} m",
+            volcal_sim::paper::TOPOLOGY,
+            paper.ranges[0],
+            paper.ranges[1],
+            paper.ranges[2]
+        );
+    }
+    Ok(())
+}
+
+/// The paper's CMM (Han et al. 2021), shipped as an example machine file.
+pub const PAPER_MACHINE: &str = include_str!("../../launch_configs/machines/paper_cmm.yaml");
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -209,6 +240,18 @@ mod tests {
     fn demo_machine_parses() {
         let m = Machine::parse(DEMO_MACHINE).unwrap();
         assert_eq!(m.layout.topology.to_string(), "FXYZ");
+    }
+
+    #[test]
+    fn paper_machine_parses_and_the_preset_checks_the_machine() {
+        let m = Machine::parse(PAPER_MACHINE).unwrap();
+        assert_eq!(m.gauge, Gauge::Datum);
+        assert_eq!(m.file.simulation.truth_preset.as_deref(), Some(PRESET_HAN2021));
+        let other = PAPER_MACHINE.replace("x: [0.0, 0.7]", "x: [0.0, 0.8]");
+        let e = Machine::parse(&other).unwrap_err();
+        assert!(format!("{e:#}").contains("truth_preset"), "{e:#}");
+        let unknown = PAPER_MACHINE.replace("han2021_table2", "nonesuch");
+        assert!(format!("{:#}", Machine::parse(&unknown).unwrap_err()).contains("unknown preset"));
     }
 
     #[test]

@@ -26,6 +26,15 @@ pub struct Sample {
     pub station_position: Point3<f64>,
     /// True air along the beam.
     pub air: Air,
+    /// Unit direction of the machine's last move into this point (also for static
+    /// acquisition: the approach direction), zero before the first move of a line.
+    pub motion: Vector3<f64>,
+    /// Time at which the interferometer counter was zeroed (start of the line).
+    pub t_zero_s: f64,
+    /// Geometric distance from the beam origin (or tracer) to the reflector at zeroing.
+    pub zero_length_m: f64,
+    /// True air at zeroing.
+    pub air_zero: Air,
 }
 
 /// A physical effect added to the simulated world. Every hook defaults to "no change".

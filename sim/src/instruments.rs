@@ -211,7 +211,11 @@ impl Default for Tracer {
 impl Tracer {
     /// Relative range reading from station `q` to the actual reflector position.
     pub fn read<R: Rng + ?Sized>(&self, q: &Point3<f64>, actual: &Point3<f64>, rng: &mut R) -> f64 {
-        let r = (actual - q).norm();
+        self.read_range((actual - q).norm(), rng)
+    }
+
+    /// Relative range reading for a geometric (optical) range `r`.
+    pub fn read_range<R: Rng + ?Sized>(&self, r: f64, rng: &mut R) -> f64 {
         let sigma = (self.noise_m.powi(2) + (self.noise_ppm * 1e-6 * r).powi(2)).sqrt();
         quantise(r - self.dead_path_m + gauss(rng, sigma), self.resolution_m)
     }

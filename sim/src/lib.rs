@@ -9,8 +9,11 @@
 //! [`simulate::simulate`] runs a whole campaign offline; the ROS 2 sim nodes drive the same
 //! components step by step. Everything is deterministic for a given seed.
 
+pub mod effects;
 pub mod inject;
 pub mod instruments;
+pub mod line_measurement;
+pub mod paper;
 pub mod plan;
 pub mod simulate;
 pub mod truth;

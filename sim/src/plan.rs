@@ -69,6 +69,9 @@ pub struct Plan {
     pub acquisition: Acquisition,
     /// Measure every beam out and back.
     pub bidirectional: bool,
+    /// Speeds cycled over the beams (or paths), m/s; empty: the acquisition speed for all.
+    /// Varying speeds tell latency (proportional to speed) from reversal (not).
+    pub speeds_mps: Vec<f64>,
     /// Tracer path: steps along X, Y, Z on the 12 edges of the working cuboid, metres.
     pub path_step_m: [f64; 3],
     /// Time to move the device to a new station, seconds.
@@ -88,6 +91,7 @@ impl Default for Plan {
             probe_offsets: vec![[0.12, 0.0, -0.10], [0.0, 0.12, -0.10], [0.0, 0.0, -0.25]],
             acquisition: Acquisition::default(),
             bidirectional: false,
+            speeds_mps: Vec::new(),
             path_step_m: [0.07, 0.05, 0.07],
             station_setup_s: 600.0,
         }
@@ -158,13 +162,22 @@ impl Plan {
         if self.probe_offsets.is_empty() {
             return Err(PlanError("at least one probe offset is needed (use [0, 0, 0] for none)".into()));
         }
-        if self.acquisition.speed() <= 0.0 {
-            return Err(PlanError("acquisition speed must be positive".into()));
+        if self.acquisition.speed() <= 0.0 || self.speeds_mps.iter().any(|v| !(*v > 0.0)) {
+            return Err(PlanError("acquisition speeds must be positive".into()));
         }
         if self.path_step_m.iter().any(|s| !(*s > 0.0)) {
             return Err(PlanError("path_step_m must be positive".into()));
         }
         Ok(())
+    }
+
+    /// Speed of beam (or path) number `i` in acquisition order.
+    pub fn speed_for(&self, i: usize) -> f64 {
+        if self.speeds_mps.is_empty() {
+            self.acquisition.speed()
+        } else {
+            self.speeds_mps[i % self.speeds_mps.len()]
+        }
     }
 
     /// Station positions for a travel: the given ones, or automatic placement.

@@ -112,7 +112,6 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
     let mut beams = Vec::new();
     let mut stations = Vec::new();
     let mut t = 0.0;
-    let speed = cfg.plan.acquisition.speed();
     let on_the_fly = matches!(cfg.plan.acquisition, Acquisition::OnTheFly { .. });
     let dwell = match cfg.plan.acquisition {
         Acquisition::Static { dwell_s, .. } => dwell_s,
@@ -156,7 +155,7 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
         Method::FixedBeam => {
             let tasks = cfg.plan.beam_tasks(&travel)?;
             let mut last_station = u32::MAX;
-            for task in &tasks {
+            for (bi, task) in tasks.iter().enumerate() {
                 if task.station != last_station {
                     if last_station != u32::MAX {
                         t += cfg.plan.station_setup_s;
@@ -164,19 +163,22 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
                     stations.push((task.station, task.pivot));
                     last_station = task.station;
                 }
+                let speed = cfg.plan.speed_for(bi);
                 let beam = cfg.deflector.point(&task.pivot, task.azimuth_rad, task.elevation_rad, &mut rng);
                 t += cfg.deflector.settle_s;
                 beams.push(TruthBeam { station: task.station, beam: task.beam, line: beam });
                 let zero = task.abscissae[0];
+                let t_zero = t;
+                let air_zero = env.air_at(t);
                 let mut prev_s = task.abscissae[0];
+                let mut motion = beam.direction;
                 for (k, &s) in task.abscissae.iter().enumerate() {
                     let ds = s - prev_s;
                     t += ds.abs() / speed + if k > 0 { dwell } else { 0.0 };
-                    let vel = if on_the_fly {
-                        beam.direction * speed * if ds < 0.0 { -1.0 } else { 1.0 }
-                    } else {
-                        Vector3::zeros()
-                    };
+                    if ds != 0.0 {
+                        motion = beam.direction * ds.signum();
+                    }
+                    let vel = if on_the_fly { motion * speed } else { Vector3::zeros() };
                     prev_s = s;
                     let mut sample = Sample {
                         kind: ObsKind::Beam,
@@ -190,6 +192,10 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
                         direction: beam.direction,
                         station_position: task.pivot,
                         air: env.air_at(t),
+                        motion,
+                        t_zero_s: t_zero,
+                        zero_length_m: zero,
+                        air_zero,
                     };
                     let mut p_actual = task.probe_offset;
                     for inj in injections {
@@ -217,11 +223,19 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
                     t += cfg.plan.station_setup_s;
                 }
                 stations.push((task.station, task.position));
+                let speed = cfg.plan.speed_for(ti);
                 let mut prev = task.points[0];
+                let t_zero = t;
+                let air_zero = env.air_at(t);
+                let zero_length = (task.points[0] + task.probe_offset - task.position).norm();
+                let mut motion = Vector3::zeros();
                 for (k, x) in task.points.iter().enumerate() {
                     let step = (x - prev).norm();
                     t += step / speed + dwell;
-                    let vel = if on_the_fly && step > 0.0 { (x - prev) / step * speed } else { Vector3::zeros() };
+                    if step > 0.0 {
+                        motion = (x - prev) / step;
+                    }
+                    let vel = if on_the_fly { motion * speed } else { Vector3::zeros() };
                     prev = *x;
                     let mut sample = Sample {
                         kind: ObsKind::Range,
@@ -235,6 +249,10 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
                         direction: (x + task.probe_offset - task.position).normalize(),
                         station_position: task.position,
                         air: env.air_at(t),
+                        motion,
+                        t_zero_s: t_zero,
+                        zero_length_m: zero_length,
+                        air_zero,
                     };
                     let mut p_actual = task.probe_offset;
                     for inj in injections {
@@ -245,10 +263,11 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
                     for inj in injections {
                         inj.actual(&sample, &mut actual);
                     }
-                    let mut l = cfg.tracer.read(&task.position, &actual, &mut rng);
+                    let mut range = (actual - task.position).norm();
                     for inj in injections {
-                        inj.optical(&sample, &mut l);
+                        inj.optical(&sample, &mut range);
                     }
+                    let l = cfg.tracer.read_range(range, &mut rng);
                     record(ObsKind::Range, task.station, task.path, t, l, *x, task.probe_offset, vel, &sample);
                 }
             }

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use volcal_nodes::commands::{self, SolveStatus};
+use volcal_nodes::{merge, paper_cmd, validation};
 
 #[derive(Parser)]
 #[command(name = "volcal", version, about = "Identify the 21 geometric error functions of a Cartesian machine from laser-interferometer data", long_about = None)]
@@ -84,6 +85,66 @@ enum Command {
         #[arg(long, default_value_t = 51)]
         points: usize,
     },
+    /// Positioning error along lines (ISO 230-2 style), predicted with uncertainty and optionally
+    /// compared with a simulated laser interferometer.
+    #[command(
+        after_help = "Examples:\n  volcal validate model.json --axis x\n  volcal validate model.json --diagonals --truth truth.json --machine launch_configs/machines/paper_cmm.yaml\n  volcal validate model.json --axis y --start 0,0,-0.7 --points 11 --out y.csv\n  volcal validate model.json --line 0,0,-0.7:0.7,-0.5,0\n\nThe deviation at each target is the model's volumetric error projected on the line, referred to the start (where an interferometer would be zeroed). Diagonals are the paper's Table 4 (NPP, NPN, PPN, PPP). With --truth (a simulation truth file) each line is also measured by a simulated interferometer on the true machine, --runs bidirectional runs averaged, and the differences reported."
+    )]
+    Validate {
+        model: PathBuf,
+        /// Axis line: x, y or z.
+        #[arg(long, conflicts_with_all = ["diagonals", "line"])]
+        axis: Option<String>,
+        /// The four body diagonals NPP, NPN, PPN, PPP.
+        #[arg(long, conflicts_with = "line")]
+        diagonals: bool,
+        /// Any line x0,y0,z0:x1,y1,z1 in metres.
+        #[arg(long, allow_hyphen_values = true)]
+        line: Option<String>,
+        /// Start of the axis line x,y,z in metres (default: lower end, other axes centred).
+        #[arg(long, allow_hyphen_values = true, requires = "axis")]
+        start: Option<String>,
+        /// Targets per line, ends included.
+        #[arg(long, default_value_t = 11)]
+        points: usize,
+        /// Probe offset px,py,pz in metres.
+        #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
+        probe: String,
+        /// Simulation truth (JSON): also measure each line with a simulated interferometer.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// Machine file whose simulation section gives the interferometer and repeatability.
+        #[arg(long, requires = "truth")]
+        machine: Option<PathBuf>,
+        /// Bidirectional runs averaged per line.
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write the lines as CSV.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Reproduce the laser-tracer scenario of Han et al. (2021): simulate, solve, Table 2,
+    /// volumetric maximum, axis and diagonal validation.
+    #[command(after_help = "Example:\n  volcal paper --workdir paper/")]
+    Paper {
+        /// Keep the files here instead of a temporary directory.
+        #[arg(long)]
+        workdir: Option<PathBuf>,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Merge campaigns of one machine (e.g. fixed beams and tracer ranges) for a joint solve.
+    #[command(
+        after_help = "Example:\n  volcal merge beams.csv ranges.csv --out joint.csv\n  volcal solve joint.csv --machine M.yaml --out model.json\n\nStation ids already used by an earlier file for the same kind are renumbered; times are shifted so that each campaign follows the previous one."
+    )]
+    Merge {
+        #[arg(required = true, num_args = 1..)]
+        campaigns: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Run the whole offline chain on the built-in example and compare with the truth.
     #[command(after_help = "Example:\n  volcal demo")]
     Demo {
@@ -124,6 +185,45 @@ fn run() -> anyhow::Result<ExitCode> {
             print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
         }
         Command::Demo { workdir, seed } => commands::demo_cmd(workdir.as_deref(), seed)?,
+        Command::Validate { model, axis, diagonals, line, start, points, probe, truth, machine, runs, seed, out } => {
+            let lines = match (axis, diagonals, line) {
+                (Some(a), _, _) => {
+                    let axis = volcal::Axis::from_letter(a.trim().chars().next().unwrap_or(' ').to_ascii_uppercase())
+                        .filter(|_| a.trim().len() == 1)
+                        .ok_or_else(|| anyhow::anyhow!("--axis {a:?}: expected x, y or z"))?;
+                    let start = start.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from);
+                    validation::LineSpec::Axis { axis, start }
+                }
+                (None, true, _) => validation::LineSpec::Diagonals,
+                (None, false, Some(l)) => validation::LineSpec::Custom(validation::parse_line(&l)?),
+                (None, false, None) => anyhow::bail!("say which lines: --axis x|y|z, --diagonals or --line"),
+            };
+            let args = validation::ValidateArgs {
+                model: &model,
+                lines,
+                points,
+                probe: commands::parse_vec3(&probe)?,
+                truth: truth.as_deref(),
+                machine: machine.as_deref(),
+                runs,
+                seed,
+                out: out.as_deref(),
+            };
+            print!("{}", validation::validate_cmd(&args)?);
+        }
+        Command::Paper { workdir, seed } => paper_cmd::paper_cmd(workdir.as_deref(), seed)?,
+        Command::Merge { campaigns, out } => {
+            let mut read = Vec::new();
+            for p in &campaigns {
+                read.push((p.display().to_string(), commands::load_campaign(p)?));
+            }
+            let (merged, notes) = merge::merge(read)?;
+            for n in notes {
+                eprintln!("note: {n}");
+            }
+            volcal_nodes::campaign_csv::write(&out, &merged)?;
+            eprintln!("wrote {} readings to {}", merged.readings.len(), out.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,288 @@
+//! Validation along lines, as the paper validates its tracer result (Han et al. 2021, section
+//! 3.2-3.3): the positioning error of each axis along a line (ISO 230-2 style, figures 7-9) and
+//! of the four body diagonals NPP, NPN, PPN, PPP (Table 4, figure 12), predicted from an
+//! identified model with uncertainty, and compared with a laser-interferometer measurement of
+//! the same lines.
+//!
+//! A laser interferometer aligned with a line from `A` (where its counter is zeroed) in direction
+//! `n` reads, at the target `X_s = A + s n`, the displacement of the reflector along `n`. Its
+//! positioning deviation (ISO 230-2: actual minus target position) is therefore
+//! `n . (e(X_s, p) - e(A, p))`: the model's volumetric error projected on the line and referred
+//! to the start. The interferometer sees every error function that moves the reflector along the
+//! line, not only the positioning error of the axis (the paper's remark on its figures 7-9).
+
+use crate::axis::{Axis, Travel};
+use crate::model::ErrorModel;
+use faer::Mat;
+use nalgebra::{Point3, Vector3};
+
+/// A straight measuring line in machine coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Line {
+    /// Display name, e.g. `X` or `PPP`.
+    pub name: String,
+    /// Where the interferometer is zeroed.
+    pub start: Point3<f64>,
+    pub end: Point3<f64>,
+}
+
+impl Line {
+    pub fn length(&self) -> f64 {
+        (self.end - self.start).norm()
+    }
+
+    /// Unit direction from start to end.
+    pub fn direction(&self) -> Vector3<f64> {
+        (self.end - self.start) / self.length()
+    }
+
+    /// Indicated position at distance `s` from the start.
+    pub fn at(&self, s: f64) -> Point3<f64> {
+        self.start + self.direction() * s
+    }
+
+    /// `n >= 2` equally spaced target distances from the start to the end, both included.
+    pub fn targets(&self, n: usize) -> Vec<f64> {
+        let n = n.max(2);
+        (0..n).map(|i| self.length() * i as f64 / (n - 1) as f64).collect()
+    }
+}
+
+/// The line along `axis` through `start` (clamped into the travel), from `start` to the end of
+/// the axis's travel farther from it. The paper's Table 3 gives such starts: X and Y from
+/// (0, 0, -700) mm, Z from (0, -500, -700) mm.
+pub fn axis_line(travel: &Travel, axis: Axis, start: &Point3<f64>) -> Line {
+    let mut a = *start;
+    for k in Axis::ALL {
+        let [lo, hi] = travel.range(k);
+        a[k.index()] = a[k.index()].clamp(lo, hi);
+    }
+    let [lo, hi] = travel.range(axis);
+    let q = a[axis.index()];
+    let mut b = a;
+    b[axis.index()] = if (hi - q).abs() >= (q - lo).abs() { hi } else { lo };
+    Line { name: axis.letter().to_string(), start: a, end: b }
+}
+
+/// The default start of an axis line: the lower end of the axis, the other axes at the centre
+/// of their travel (where ISO 230-2 measures unless told otherwise).
+pub fn default_axis_start(travel: &Travel, axis: Axis) -> Point3<f64> {
+    let mut c = travel.centre();
+    c[axis.index()] = travel.range(axis)[0];
+    c
+}
+
+/// The four body diagonals of the working volume as in the paper's Table 4, whose travel is
+/// X [0, 700], Y [-500, 0], Z [-700, 0] mm: NPP from (700, -500, -700) to (0, 0, 0), NPN from
+/// (0, 0, -700) to (700, -500, 0), PPN from (700, 0, -700) to (0, -500, 0), PPP from
+/// (0, -500, -700) to (700, 0, 0). Each starts at the bottom of Z and ends at the opposite
+/// corner; for another travel the same corners (lower or upper end of each axis) are taken.
+pub fn body_diagonals(travel: &Travel) -> [Line; 4] {
+    // Start corner per diagonal: false = lower end, true = upper end of X, Y, Z.
+    const STARTS: [(&str, [bool; 3]); 4] = [
+        ("NPP", [true, false, false]),
+        ("NPN", [false, true, false]),
+        ("PPN", [true, true, false]),
+        ("PPP", [false, false, false]),
+    ];
+    STARTS.map(|(name, hi)| {
+        let corner = |flags: [bool; 3]| Point3::from(Vector3::from_fn(|k, _| travel.ranges[k][usize::from(flags[k])]));
+        Line { name: name.to_string(), start: corner(hi), end: corner(hi.map(|h| !h)) }
+    })
+}
+
+/// Predicted positioning deviation at one target of a line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PositioningPoint {
+    /// Target distance from the start, metres.
+    pub s_m: f64,
+    /// Indicated position of the target.
+    pub x: Point3<f64>,
+    /// `n . (e(X_s, p) - e(A, p))`, metres.
+    pub deviation_m: f64,
+    /// Standard uncertainty of the deviation (from the model covariance), metres.
+    pub sigma_m: f64,
+}
+
+/// Predicts the positioning deviations of `line` at the `targets` (distances from the start)
+/// for probe offset `p`: exact kinematic chain for the value, small-angle sensitivity for the
+/// uncertainty (`g^T C g` with `g = n^T (G(X_s) - G(A))`).
+pub fn predict_positioning(
+    model: &ErrorModel,
+    cov: &Mat<f64>,
+    line: &Line,
+    p: &Vector3<f64>,
+    targets: &[f64],
+) -> Vec<PositioningPoint> {
+    let n = line.direction();
+    let e0 = model.error(&line.start, p);
+    let g0: Vec<(usize, f64)> = model.layout.sensitivity(&line.start, p).project(&n).collect();
+    let n_params = model.layout.n_params;
+    let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
+    targets
+        .iter()
+        .map(|&s| {
+            let x = line.at(s);
+            let dev = n.dot(&(model.error(&x, p) - e0));
+            let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
+            g.extend(g0.iter().map(|&(k, v)| (k, -v)));
+            let var = if with_cov { quadratic_form(cov, &g) } else { 0.0 };
+            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m: var.max(0.0).sqrt() }
+        })
+        .collect()
+}
+
+/// `g^T C g` for a sparse `g` given as (index, value) pairs (indices may repeat).
+fn quadratic_form(cov: &Mat<f64>, g: &[(usize, f64)]) -> f64 {
+    let mut v = 0.0;
+    for &(i, gi) in g {
+        for &(j, gj) in g {
+            v += gi * gj * cov[(i, j)];
+        }
+    }
+    v
+}
+
+/// One target of a prediction-versus-measurement comparison.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ComparedPoint {
+    pub s_m: f64,
+    pub predicted_m: f64,
+    pub predicted_sigma_m: f64,
+    pub measured_m: f64,
+    pub measured_sigma_m: f64,
+    /// Predicted minus measured.
+    pub difference_m: f64,
+    /// Normalised error `|difference| / (k sqrt(u_pred^2 + u_meas^2))` with k = 2: at most 1
+    /// when the two agree within their expanded uncertainties.
+    pub en: f64,
+}
+
+/// Prediction versus measurement along one line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineComparison {
+    pub line: Line,
+    pub points: Vec<ComparedPoint>,
+    /// Largest |predicted - measured|, metres (the paper's "maximum difference").
+    pub max_abs_difference_m: f64,
+    /// ISO 230-2 positioning error of the line (range of the mean deviations), predicted.
+    pub predicted_range_m: f64,
+    /// The same from the measurement.
+    pub measured_range_m: f64,
+    /// Largest normalised error over the targets.
+    pub max_en: f64,
+}
+
+/// Compares predicted deviations with measured mean deviations and their standard
+/// uncertainties (same targets, same order).
+pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f64)]) -> LineComparison {
+    assert_eq!(predicted.len(), measured.len(), "prediction and measurement must have the same targets");
+    let points: Vec<ComparedPoint> = predicted
+        .iter()
+        .zip(measured)
+        .map(|(p, &(m, um))| {
+            let d = p.deviation_m - m;
+            let u = (p.sigma_m.powi(2) + um.powi(2)).sqrt();
+            let en = if u > 0.0 { d.abs() / (crate::predict::COVERAGE_K * u) } else { f64::INFINITY };
+            ComparedPoint {
+                s_m: p.s_m,
+                predicted_m: p.deviation_m,
+                predicted_sigma_m: p.sigma_m,
+                measured_m: m,
+                measured_sigma_m: um,
+                difference_m: d,
+                en,
+            }
+        })
+        .collect();
+    let range = |v: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = v.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+        hi - lo
+    };
+    LineComparison {
+        line: line.clone(),
+        max_abs_difference_m: points.iter().map(|c| c.difference_m.abs()).fold(0.0, f64::max),
+        predicted_range_m: range(&mut points.iter().map(|c| c.predicted_m)),
+        measured_range_m: range(&mut points.iter().map(|c| c.measured_m)),
+        max_en: points.iter().map(|c| c.en).fold(0.0, f64::max),
+        points,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::functions::ErrorFunction;
+    use crate::{ModelLayout, Representation, Topology};
+
+    fn paper_travel() -> Travel {
+        Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0])
+    }
+
+    #[test]
+    fn diagonals_are_those_of_table_4() {
+        let d = body_diagonals(&paper_travel());
+        let mm = |p: Point3<f64>| (p * 1e3).map(|v| v.round() as i64);
+        let expect = [
+            ("NPP", [700, -500, -700], [0, 0, 0]),
+            ("NPN", [0, 0, -700], [700, -500, 0]),
+            ("PPN", [700, 0, -700], [0, -500, 0]),
+            ("PPP", [0, -500, -700], [700, 0, 0]),
+        ];
+        for (line, (name, a, b)) in d.iter().zip(expect) {
+            assert_eq!(line.name, name);
+            assert_eq!(mm(line.start), Point3::from(a), "{name}");
+            assert_eq!(mm(line.end), Point3::from(b), "{name}");
+        }
+    }
+
+    #[test]
+    fn axis_lines_of_table_3_run_over_the_whole_travel() {
+        let t = paper_travel();
+        let x = axis_line(&t, Axis::X, &Point3::new(0.0, 0.0, -0.7));
+        assert_eq!((x.start, x.end), (Point3::new(0.0, 0.0, -0.7), Point3::new(0.7, 0.0, -0.7)));
+        let y = axis_line(&t, Axis::Y, &Point3::new(0.0, 0.0, -0.7));
+        assert_eq!(y.end, Point3::new(0.0, -0.5, -0.7));
+        let z = axis_line(&t, Axis::Z, &Point3::new(0.0, -0.5, -0.7));
+        assert_eq!(z.end, Point3::new(0.0, -0.5, 0.0));
+        assert_eq!(x.targets(11).len(), 11);
+        assert!((x.targets(11)[10] - 0.7).abs() < 1e-15);
+    }
+
+    /// Along an X line at y = z = 0 with zero probe offset, only EXX moves the reflector along
+    /// X (the lever arm of X's rotations is (0, 0, z) = 0): the predicted deviation is EXX(x) -
+    /// EXX(0), and its variance is that of this difference.
+    #[test]
+    fn deviation_along_x_is_the_positioning_error() {
+        let layout = ModelLayout::uniform(
+            Topology::parse("FYXZ").unwrap(),
+            paper_travel(),
+            Representation::Polynomial { degree: 3 },
+        );
+        let mut m = ErrorModel::zero(layout.clone());
+        let exx = ErrorFunction::parse("EXX").unwrap();
+        m.set_function(exx, |x| 20e-6 * x * x);
+        m.set_function(ErrorFunction::parse("EYX").unwrap(), |x| 5e-6 * x);
+        let n = layout.n_params;
+        let cov = Mat::<f64>::from_fn(n, n, |i, j| if i == j { 1e-14 } else { 0.0 });
+        let line = axis_line(&layout.travel, Axis::X, &Point3::new(0.0, 0.0, 0.0));
+        let pts = predict_positioning(&m, &cov, &line, &Vector3::zeros(), &line.targets(8));
+        let b = layout.basis(exx);
+        let r = layout.range(exx);
+        for p in &pts {
+            let x = p.x.x;
+            assert!((p.deviation_m - 20e-6 * x * x).abs() < 1e-15);
+            let g: Vec<f64> = (0..b.n_coeffs())
+                .map(|k| {
+                    let at = |q: f64| b.eval(q).iter().filter(|(i, _)| *i == k).map(|(_, v)| v).sum::<f64>();
+                    at(x) - at(0.0)
+                })
+                .collect();
+            let var: f64 = g.iter().map(|v| v * v * cov[(r.start, r.start)]).sum();
+            assert!((p.sigma_m - var.sqrt()).abs() < 1e-15, "{} vs {}", p.sigma_m, var.sqrt());
+        }
+        let c = compare(&line, &pts, &pts.iter().map(|p| (p.deviation_m + 1e-6, 0.0)).collect::<Vec<_>>());
+        assert!((c.max_abs_difference_m - 1e-6).abs() < 1e-15);
+        assert!((c.predicted_range_m - 20e-6 * 0.49).abs() < 1e-15);
+    }
+}
