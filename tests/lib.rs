@@ -104,3 +104,4 @@ pub fn gauge_distance(
     }
     (max, (s2 / n as f64).sqrt())
 }
+pub mod diagnosis;

@@ -91,6 +91,9 @@ pub struct SolveOptions {
     pub initial_stations: Vec<(u32, Point3<f64>)>,
     /// Use only the line groups where this is true (cross-validation); all when `None`.
     pub group_mask: Option<Vec<bool>>,
+    /// Starting model coefficients `u` (e.g. a fit of the same machine on more data); zero
+    /// errors when `None` or of the wrong length.
+    pub initial_model: Option<Vec<f64>>,
 }
 
 impl Default for SolveOptions {
@@ -104,6 +107,7 @@ impl Default for SolveOptions {
             rank_tolerance: 1e-10,
             initial_stations: Vec::new(),
             group_mask: None,
+            initial_model: None,
         }
     }
 }
@@ -584,8 +588,11 @@ pub fn fit<'a>(
     };
 
     let mut warnings = Vec::new();
-    // Initial state: zero errors, closed-form stations.
+    // Initial state: zero errors (or the given model), closed-form stations.
     let mut d = vec![0.0; dims.n()];
+    if let Some(u) = opts.initial_model.as_ref().filter(|u| u.len() == layout.n_params) {
+        d[..layout.n_params].copy_from_slice(u);
+    }
     let mut ranges_at_init = vec![0.0; obs.len()];
     for (s, &st) in stations.iter().enumerate() {
         let given = opts.initial_stations.iter().find(|(id, _)| *id == st).map(|(_, q)| *q);
@@ -709,7 +716,7 @@ pub fn fit<'a>(
         }
     }
     warnings.extend(lm.warnings.iter().cloned());
-    let (iterations, converged, mut factor) = (lm.iterations, lm.converged, lm.factor);
+    let (iterations, converged, mut factor, damped) = (lm.iterations, lm.converged, lm.factor, lm.damped);
     if !converged {
         warnings.push(format!("the estimator did not converge in {} iterations", iterations));
     }
@@ -719,7 +726,7 @@ pub fn fit<'a>(
     // the beam directions (the machine's angular errors, ~1e-5 rad), so the covariance differs
     // by a relative amount of the same order, far below the precision to which it is reported.
     let final_res = Residuals { residual: normal.res.residual.clone(), origin: normal.res.origin.clone() };
-    if nonlinear {
+    if nonlinear || damped {
         // At the solution, undamped; a tiny damping if rounding makes it indefinite.
         factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
     }
@@ -814,6 +821,8 @@ struct LmRun {
     /// Factorisation of the reduced matrix last in use (the frozen one for beams).
     factor: Reduced,
     warnings: Vec<String>,
+    /// Whether it ended as damped Levenberg-Marquardt (`factor` is then not at the solution).
+    damped: bool,
 }
 
 /// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
@@ -843,9 +852,14 @@ fn levenberg_marquardt(
     // refreshed matrix that fails to factorise is not adopted).
     let mut last_step = f64::INFINITY;
     let mut stalls = 0;
+    // Beam directions are refitted to the actual points at every step (they are not
+    // parameters), which the frozen Gauss-Newton step ignores. On weakly determined campaigns
+    // (e.g. half of the lines, for cross-validation) that can make the cost rise; the solve
+    // then continues as damped Levenberg-Marquardt with a refreshed matrix at every step.
+    let mut damped = nonlinear;
     for it in 0..opts.max_iterations {
         iterations = it + 1;
-        let step = if nonlinear {
+        let step = if damped {
             match Reduced::new(normal, z, scale, mu) {
                 Ok(r) => reduced_step(&r, normal, z, scale),
                 Err(_) => {
@@ -864,9 +878,15 @@ fn levenberg_marquardt(
         let ratio = step.max_sigma_ratio / last_step;
         // Frozen normal matrix while steps shrink fast; refreshed when convergence slows (a
         // poorly conditioned gauge amplifies the change of the rows) and always for ranges.
-        let refresh = nonlinear || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
+        let refresh = damped || (ratio > 0.1 && step.max_sigma_ratio >= 1e-4);
         let trial_normal = if refresh { assemble(prob, &trial) } else { gradient(prob, &trial) };
-        if nonlinear && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
+        if !damped && trial_normal.cost > normal.cost * (1.0 + 1e-9) && step.max_sigma_ratio >= opts.tolerance {
+            damped = true;
+            mu = 1e-4;
+            *normal = assemble(prob, state);
+            continue;
+        }
+        if damped && trial_normal.cost > normal.cost * (1.0 + 1e-12) {
             if step.max_sigma_ratio < opts.tolerance {
                 // A negligible step that does not lower the cost: the minimum is reached to
                 // round-off; raising the damping would only spend iterations.
@@ -883,7 +903,7 @@ fn levenberg_marquardt(
         mu *= 0.1;
         *state = trial;
         *normal = trial_normal;
-        if refresh && !nonlinear {
+        if refresh && !damped {
             match Reduced::new(normal, z, scale, 0.0) {
                 Ok(r) => factor = r,
                 Err(_) => warnings
@@ -900,7 +920,7 @@ fn levenberg_marquardt(
             break;
         }
     }
-    LmRun { iterations, converged, factor, warnings }
+    LmRun { iterations, converged, factor, warnings, damped }
 }
 
 fn init_station(obs: &Observations, st: u32) -> Result<Point3<f64>, SolveError> {

@@ -92,10 +92,11 @@ pub fn simulate_cmd(
     Ok(())
 }
 
-/// Reads a campaign from CSV (or, once the bag reader exists, MCAP).
+/// Reads a campaign from CSV, or from a bag (a directory with `metadata.yaml`, or an `.mcap`
+/// file) recorded by the node set.
 pub fn load_campaign(path: &Path) -> Result<Campaign> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext == "mcap" {
+    if ext == "mcap" || path.is_dir() {
         return crate::bag_campaign::read(path);
     }
     let r = campaign_csv::read(path)?;
@@ -131,7 +132,7 @@ pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, prove
 pub fn provenance(campaign: &Path, machine: &Path) -> Result<Provenance> {
     Ok(Provenance {
         input: campaign.display().to_string(),
-        input_sha256: model_file::sha256_file(campaign)?,
+        input_sha256: crate::node::solver::input_sha256(campaign)?,
         machine: machine.display().to_string(),
         machine_sha256: model_file::sha256_file(machine)?,
         software: crate::software_version(),
@@ -461,7 +462,8 @@ pub fn compare_with_truth(
 }
 
 /// `volcal demo`: simulate the patent's example campaign on the built-in machine, solve it,
-/// print the report and the comparison with the simulation truth.
+/// print the report and the comparison with the simulation truth; then run the same campaign
+/// through the ROS 2 node set ([`crate::demo_chain`]).
 pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
     let dir = match workdir {
         Some(d) => d.to_path_buf(),
@@ -488,6 +490,8 @@ pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         c.max_m * 1e6,
         c.predicted_rms_m * 1e6
     );
+    // The same campaign through the ROS 2 node set (launch, record, replay, solve).
+    crate::demo_chain::run(&dir, seed, &machine_path, &solved, &tm, &offs)?;
     Ok(())
 }
 

@@ -47,7 +47,8 @@ pub struct Geometry {
     pub delta_air: Option<Vec<f64>>,
     /// Per reading: machine temperature minus 20 degC (from records).
     pub dtemp: Option<Vec<f64>>,
-    /// Per reading: fringe count `2 n l / lambda_vac` (air from records, else standard air).
+    /// Per reading: fringe count `2 n l / lambda_vac` of the fitted length `l` (air from
+    /// records, else standard air).
     pub fringes: Vec<f64>,
     pub fringes_from_records: bool,
 }
@@ -187,8 +188,15 @@ impl Geometry {
         let has_temp = !obs.machine_temp.is_empty() && obs.machine_temp.iter().all(|t| t.is_some());
         let dtemp = has_temp.then(|| obs.machine_temp.iter().map(|t| t.unwrap() - 20.0).collect());
         let standard = index(&Air::standard());
-        let fringes = (0..n)
-            .map(|i| 2.0 * obs.air[i].map(|a| index(&a)).unwrap_or(standard) * obs.l[i] / optics.wavelength_vac_m)
+        // The phase of the cyclic error is that of the true length. The reading carries the
+        // error itself (20 nm is a fifth of a radian) and the instrument's noise, which would
+        // correlate the regressors with the noise of the very readings they fit: the phase is
+        // taken from the fitted length instead (air from the records, else standard air).
+        let fringes: Vec<f64> = (0..n)
+            .map(|i| {
+                let length = obs.l[i] - sol.residuals[i];
+                2.0 * obs.air[i].map(|a| index(&a)).unwrap_or(standard) * length / optics.wavelength_vac_m
+            })
             .collect();
         let _ = counts;
         Geometry {
@@ -291,11 +299,28 @@ pub fn directions(obs: &Observations, fit: &Fit<'_>, geo: &Geometry) -> Vec<Vect
         .collect()
 }
 
-fn tabulate(id: &'static str, names: Vec<String>, n: usize, mut f: impl FnMut(usize, &mut [f64])) -> TabulatedEffect {
+/// Tabulates an effect's regressors, centred on each line: every line has its own eliminated
+/// origin, so a constant per line changes nothing, and removing it exactly keeps a regressor
+/// whose visible part is small next to its constant part (e.g. `probe_offset`, seen only
+/// through the tool rotation along a fixed beam) above the estimator's resolution floor.
+fn tabulate(
+    id: &'static str,
+    names: Vec<String>,
+    obs: &Observations,
+    mut f: impl FnMut(usize, &mut [f64]),
+) -> TabulatedEffect {
     let k = names.len();
-    let mut regs = vec![0.0; n * k];
-    for i in 0..n {
+    let mut regs = vec![0.0; obs.len() * k];
+    for i in 0..obs.len() {
         f(i, &mut regs[i * k..(i + 1) * k]);
+    }
+    for g in &obs.groups {
+        for j in 0..k {
+            let mean = g.range().map(|i| regs[i * k + j]).sum::<f64>() / g.len().max(1) as f64;
+            if mean != 0.0 {
+                g.range().for_each(|i| regs[i * k + j] -= mean);
+            }
+        }
     }
     TabulatedEffect { id, names, regs }
 }
@@ -307,7 +332,7 @@ pub fn air_recorded(obs: &Observations, geo: &Geometry) -> Option<TabulatedEffec
     let delta = geo.delta_air.as_ref()?;
     let names = vec!["uncompensated_fraction".to_string(), "internal_dead_path_term_m".to_string()];
     let first = |g: usize| delta[obs.groups[g].start];
-    Some(tabulate("air_refraction", names, obs.len(), |i, out| {
+    Some(tabulate("air_refraction", names, obs, |i, out| {
         let g = geo.group_of[i];
         let dd = delta[i] - first(g);
         out[0] = delta[i] * (obs.l[i] - geo.l0[g]) + dd * geo.d0[g];
@@ -322,7 +347,7 @@ pub const DRIFT_DEGREE: usize = 3;
 /// `delta(t) = sum_k c_k P_k(tau)`, same geometry as [`air_recorded`].
 pub fn air_unrecorded(obs: &Observations, geo: &Geometry) -> TabulatedEffect {
     let names = (1..=DRIFT_DEGREE).map(|k| format!("scale_drift_p{k}")).collect();
-    tabulate("air_refraction", names, obs.len(), |i, out| {
+    tabulate("air_refraction", names, obs, |i, out| {
         let g = geo.group_of[i];
         let (tau, tau0) = (geo.tau(obs.t[i]), geo.tau(geo.t0[g]));
         for k in 1..=DRIFT_DEGREE {
@@ -336,7 +361,7 @@ pub fn air_unrecorded(obs: &Observations, geo: &Geometry) -> TabulatedEffect {
 pub fn material_recorded(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Option<TabulatedEffect> {
     let dt = geo.dtemp.as_ref()?;
     let names = ["alpha_x_per_k", "alpha_y_per_k", "alpha_z_per_k"].map(String::from).to_vec();
-    Some(tabulate("material_expansion", names, obs.len(), |i, out| {
+    Some(tabulate("material_expansion", names, obs, |i, out| {
         for k in 0..3 {
             out[k] = dirs[i][k] * obs.x[i][k] * dt[i];
         }
@@ -351,7 +376,7 @@ pub fn material_unrecorded(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geom
             names.push(format!("scale_{a}_drift_p{k}"));
         }
     }
-    tabulate("material_expansion", names, obs.len(), |i, out| {
+    tabulate("material_expansion", names, obs, |i, out| {
         let tau = geo.tau(obs.t[i]);
         for a in 0..3 {
             for k in 1..=2 {
@@ -370,7 +395,7 @@ pub fn setup_drift(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) ->
             names.push(format!("{k}{id}_{c}_m_per_s"));
         }
     }
-    tabulate("setup_drift", names, obs.len(), |i, out| {
+    tabulate("setup_drift", names, obs, |i, out| {
         let g = geo.group_of[i];
         let s = geo.station_of_group[g];
         for c in 0..3 {
@@ -382,7 +407,7 @@ pub fn setup_drift(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) ->
 /// `latency`: the coordinates lag the abscissae by `tau`: `n . v tau`.
 pub fn latency(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Option<TabulatedEffect> {
     geo.velocity_recorded.then(|| {
-        tabulate("latency", vec!["latency_s".into()], obs.len(), |i, out| out[0] = dirs[i].dot(&geo.velocity[i]))
+        tabulate("latency", vec!["latency_s".into()], obs, |i, out| out[0] = dirs[i].dot(&geo.velocity[i]))
     })
 }
 
@@ -390,7 +415,7 @@ pub fn latency(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Opt
 /// `-n_k b_k sign(m_k) / 2`.
 pub fn reversal(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> TabulatedEffect {
     let names = ["backlash_x_m", "backlash_y_m", "backlash_z_m"].map(String::from).to_vec();
-    tabulate("reversal", names, obs.len(), |i, out| {
+    tabulate("reversal", names, obs, |i, out| {
         for k in 0..3 {
             let m = geo.motion[i][k];
             out[k] = if m.abs() > 1e-6 { -0.5 * dirs[i][k] * m.signum() } else { 0.0 };
@@ -400,7 +425,7 @@ pub fn reversal(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Ta
 
 /// `periodic_pitch` of an axis with period `period`: `n_a (s sin + c cos)(2 pi q_a / period)`.
 pub fn periodic(obs: &Observations, dirs: &[Vector3<f64>], axis: usize, period: f64) -> TabulatedEffect {
-    tabulate("periodic_pitch", vec!["sin_m".into(), "cos_m".into()], obs.len(), |i, out| {
+    tabulate("periodic_pitch", vec!["sin_m".into(), "cos_m".into()], obs, |i, out| {
         let (sn, cs) = (2.0 * PI * obs.x[i][axis] / period).sin_cos();
         out[0] = dirs[i][axis] * sn;
         out[1] = dirs[i][axis] * cs;
@@ -424,7 +449,7 @@ pub fn nonrigid(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Ta
     }
     let names =
         terms.iter().map(|&(c, a, oa, b, ob)| format!("e{}:P{oa}({})P{ob}({})", axes[c], axes[a], axes[b])).collect();
-    tabulate("nonrigid", names, obs.len(), |i, out| {
+    tabulate("nonrigid", names, obs, |i, out| {
         let x = &obs.x[i];
         for (j, &(c, a, oa, b, ob)) in terms.iter().enumerate() {
             out[j] = dirs[i][c] * legendre(oa, geo.unit(a, x[a])) * legendre(ob, geo.unit(b, x[b]));
@@ -445,7 +470,7 @@ pub fn probe_offset(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -
             names.push(format!("probe{k}_{c}"));
         }
     }
-    Some(tabulate("probe_offset", names, obs.len(), |i, out| {
+    Some(tabulate("probe_offset", names, obs, |i, out| {
         if let Some(slot) = others.iter().position(|&k| k == geo.probe_of[i]) {
             // n . (I + [r]x) e_c = n_c + (n x r)_c.
             let v = dirs[i] + dirs[i].cross(&geo.rot_sum[i]);
@@ -456,9 +481,29 @@ pub fn probe_offset(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -
     }))
 }
 
+/// Not a catalogue effect: a local anomaly in one cell of the volume, an error vector linear
+/// in the coordinates inside the cell (12 parameters). It competes with the catalogue so that
+/// an excess confined to one place is not forced into a campaign-wide name.
+pub fn local_anomaly(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry, cell: usize) -> TabulatedEffect {
+    let axes = ["x", "y", "z"];
+    let names = (0..3)
+        .flat_map(|c| ["1", "x", "y", "z"].map(move |t| format!("e{}:{t}", axes[c])))
+        .collect();
+    tabulate("local_anomaly", names, obs, |i, out| {
+        if super::locate::cell(geo, &obs.x[i]) == cell {
+            let u = [1.0, geo.unit(0, obs.x[i].x), geo.unit(1, obs.x[i].y), geo.unit(2, obs.x[i].z)];
+            for c in 0..3 {
+                for (t, ut) in u.iter().enumerate() {
+                    out[4 * c + t] = dirs[i][c] * ut;
+                }
+            }
+        }
+    })
+}
+
 /// `beam_break`: a step of the readings of group `g` from its `index`-th point on.
 pub fn beam_break(obs: &Observations, geo: &Geometry, group: usize, index: usize) -> TabulatedEffect {
-    tabulate("beam_break", vec!["step_m".into()], obs.len(), |i, out| {
+    tabulate("beam_break", vec!["step_m".into()], obs, |i, out| {
         out[0] = if geo.group_of[i] == group && geo.index_in_group[i] >= index { 1.0 } else { 0.0 };
     })
 }
@@ -499,4 +544,18 @@ pub fn cyclic(obs: &Observations, geo: &Geometry) -> CyclicEffect {
         names.push(format!("s{}b{}_cos_m", gr.station, gr.line));
     }
     CyclicEffect { names, slot_of_group, group_of: geo.group_of.clone(), fringes: geo.fringes.clone() }
+}
+
+
+/// Amplitude of the cyclic error and its standard uncertainty from the per-beam sine and cosine
+/// coefficients (name, value, uncertainty): the mean of `s^2 + c^2` debiased by their noise.
+pub fn cyclic_amplitude(coeffs: &[(String, f64, f64)]) -> (f64, f64) {
+    let (mut a2, mut v, mut nb) = (0.0f64, 0.0f64, 0.0f64);
+    for pair in coeffs.chunks(2).filter(|p| p.len() == 2) {
+        a2 += pair[0].1.powi(2) + pair[1].1.powi(2) - pair[0].2.powi(2) - pair[1].2.powi(2);
+        v += pair[0].2.powi(2) + pair[1].2.powi(2);
+        nb += 1.0;
+    }
+    let amp = (a2 / nb.max(1.0)).max(0.0).sqrt();
+    (amp, (v / nb.max(1.0) / 2.0 / nb.max(1.0)).sqrt())
 }

@@ -7,7 +7,7 @@
 
 use super::catalogue::Geometry;
 use crate::campaign::{ObsKind, Observations};
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 
@@ -23,9 +23,42 @@ pub struct Location {
     pub excess_chi2: f64,
     /// Share of the campaign's total excess chi-square.
     pub share: f64,
+    /// Share of the readings (regions; zero for spectra). `share / fraction` above 1 means
+    /// the excess is concentrated there.
+    pub fraction: f64,
     /// Probability of at least this much under noise alone (Bonferroni-corrected).
     pub p_value: f64,
     pub detail: String,
+}
+
+impl Location {
+    /// Share of the excess over share of the readings (regions); zero for spectra.
+    pub fn concentration(&self) -> f64 {
+        if self.fraction > 0.0 {
+            self.share / self.fraction
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Number of cells of the volume (thirds of each axis's travel).
+pub const CELLS: usize = 27;
+
+/// Cell of the volume holding machine coordinates `x`.
+pub fn cell(geo: &Geometry, x: &Point3<f64>) -> usize {
+    let mut c = 0;
+    for a in 0..3 {
+        let u = ((geo.unit(a, x[a]) + 1.0) / 2.0 * 3.0).floor().clamp(0.0, 2.0) as usize;
+        c = c * 3 + u;
+    }
+    c
+}
+
+/// "X high third, Y low third, Z middle third".
+pub fn cell_label(c: usize) -> String {
+    let names = ["low", "middle", "high"];
+    format!("X {} third, Y {} third, Z {} third", names[c / 9], names[(c / 3) % 3], names[c % 3])
 }
 
 /// Upper-tail probability of a chi-square with `dof` degrees of freedom.
@@ -60,6 +93,7 @@ pub fn locate(
                 label,
                 excess_chi2: chi2 - dof,
                 share: (chi2 - dof) / total_excess,
+                fraction: members.len() as f64 / z.len().max(1) as f64,
                 p_value: p,
                 detail,
             });
@@ -127,29 +161,22 @@ pub fn locate(
         );
     }
     // Volume: 3 x 3 x 3 cells of the travel.
-    let cell = |i: usize| -> usize {
-        let mut c = 0;
-        for a in 0..3 {
-            let u = ((geo.unit(a, obs.x[i][a]) + 1.0) / 2.0 * 3.0).floor().clamp(0.0, 2.0) as usize;
-            c = c * 3 + u;
-        }
-        c
-    };
-    let mut cells: Vec<Vec<usize>> = vec![Vec::new(); 27];
+    let mut cells: Vec<Vec<usize>> = vec![Vec::new(); CELLS];
     for i in 0..obs.len() {
-        cells[cell(i)].push(i);
+        cells[cell(geo, &obs.x[i])].push(i);
     }
-    let names = ["low", "middle", "high"];
     let mut vol = Vec::new();
     for (c, members) in cells.iter().enumerate() {
         if members.is_empty() {
             continue;
         }
-        let label = format!("X {} third, Y {} third, Z {} third", names[c / 9], names[(c / 3) % 3], names[c % 3]);
-        test("volume", label, members, 27, format!("{} readings", members.len()), &mut vol);
+        test("volume", cell_label(c), members, CELLS, format!("{} readings", members.len()), &mut vol);
     }
     vol.sort_by(|a, b| b.excess_chi2.total_cmp(&a.excess_chi2));
     out.extend(vol.into_iter().take(3));
+    // Most concentrated first: a station holding a third of the excess with a third of the
+    // readings says less than a corner of the volume holding a third with a twentieth.
+    out.sort_by(|a, b| b.concentration().total_cmp(&a.concentration()));
     // Spectrum along each axis: a periodogram of the weighted residuals projected on the axis.
     for a in 0..3 {
         if let Some(l) = spectrum(obs, geo, dirs, z, a, alpha) {
@@ -178,6 +205,7 @@ fn spectrum(
         label: format!("{} axis, period {:.2} mm", ["X", "Y", "Z"][a], best.1 * 1e3),
         excess_chi2: best.0 - 2.0,
         share: 0.0,
+        fraction: 0.0,
         p_value: p,
         detail: format!("periodogram of the residuals along {} over {} periods", ["X", "Y", "Z"][a], periods.len()),
     })

@@ -13,8 +13,10 @@
 //!    significant after a Bonferroni correction over all candidates, its information criterion
 //!    (BIC) improves, it explains a substantial share of the remaining excess, and (for effects
 //!    with campaign-wide parameters) it predicts held-out lines: a two-fold cross-validation
-//!    across lines. The model is refitted with it and the search repeats until nothing
-//!    significant remains. Clean data raise no alarm; similar effects are told apart by the
+//!    across lines, where half of the lines determine the effect at all; and it stays
+//!    significant without the line that holds most of the excess, if one does (a local anomaly
+//!    is not campaign-wide physics). The model is refitted with it and the search repeats until
+//!    nothing significant remains. Clean data raise no alarm; similar effects are told apart by the
 //!    evidence once the first is modelled.
 //! 5. Report each effect in plain words with its parameters and uncertainties, the residual RMS
 //!    before and after, the change in the identified error map, and whatever stays unexplained.
@@ -116,6 +118,8 @@ pub struct CandidateReport {
     pub evidence: f64,
     pub share: f64,
     pub cv_gain: Option<f64>,
+    /// Corrected p-value with the line that holds most of the excess left out (when one does).
+    pub without_dominant_p: Option<f64>,
     pub accepted: bool,
 }
 
@@ -132,12 +136,14 @@ enum Family {
     Probe,
     BeamBreak(usize),
     Cyclic,
+    /// Not a catalogue effect: a local anomaly in a cell of the volume (a competitor only).
+    Local,
 }
 
 impl Family {
     /// Whether the effect has campaign-wide parameters (cross-validation across lines applies).
     fn global(self) -> bool {
-        !matches!(self, Family::BeamBreak(_) | Family::Cyclic)
+        !matches!(self, Family::BeamBreak(_) | Family::Cyclic | Family::Local)
     }
 
     fn same_kind(self, other: Family) -> bool {
@@ -167,6 +173,8 @@ struct Evaluated {
     evidence: f64,
     share: f64,
     cv_gain: Option<f64>,
+    /// Bonferroni-corrected p-value without the dominant line (when one holds most of the excess).
+    without_dominant: Option<f64>,
 }
 
 /// Runs the diagnosis.
@@ -179,19 +187,24 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
     let z0: Vec<f64> = (0..obs.len()).map(|i| before.residuals[i] / before.sigmas[i]).collect();
     let locations = locate::locate(obs, &geo, &dirs, &z0, dof_ratio, opts.alpha);
     drop(base);
+    // The readings as the refits see them: `probe_offset` moves the declared probe offsets.
+    let mut work = obs.clone();
+    let mut probe_shift = vec![Vector3::zeros(); geo.probes.len()];
+    let mut hypers = Vec::new();
 
     let mut selected: Vec<(Family, Box<dyn Effect>)> = Vec::new();
     let mut found: Vec<FoundEffect> = Vec::new();
     let mut current = before.clone();
     let mut rounds = Vec::new();
+    let mut local: Option<String> = None;
     loop {
         if found.len() >= opts.max_effects {
             break;
         }
         let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
-        let f = fit(layout, obs, &opts.solve, &refs)?;
-        let candidates = propose(obs, &geo, &dirs, &f, &selected);
-        let mut evaluated: Vec<Evaluated> = candidates.into_iter().map(|c| evaluate(obs, &f, c, opts)).collect();
+        let f = fit(layout, &work, &opts.solve, &refs)?;
+        let candidates = propose(&work, &geo, &dirs, &f, &selected);
+        let mut evaluated: Vec<Evaluated> = candidates.into_iter().map(|c| evaluate(&work, &f, c, opts)).collect();
         evaluated.sort_by(|a, b| b.evidence.total_cmp(&a.evidence));
         let total_tests: usize = evaluated.iter().map(|e| e.cand.tests).sum::<usize>().max(1);
         let accept = |e: &Evaluated| {
@@ -205,31 +218,69 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         let mut folds: Option<(Fit<'_>, Fit<'_>)> = None;
         let masks: [Vec<bool>; 2] =
             [(0..obs.groups.len()).map(|g| g % 2 == 0).collect(), (0..obs.groups.len()).map(|g| g % 2 == 1).collect()];
+        // A line holding most of the excess: campaign-wide effects must stay significant
+        // without it, or they are a local anomaly (a dent crossed by one beam) dressed up.
+        let dominant = dominant_line(&work, f.solution());
+        let mut without: Option<(Fit<'_>, Vec<bool>)> = None;
         let mut chosen = None;
         for (k, e) in evaluated.iter_mut().enumerate() {
             if !accept(e) {
                 continue;
             }
+            if let (true, Some(g)) = (e.cand.family.global() && e.score.rank > 0, dominant) {
+                if without.is_none() {
+                    let sol = f.solution();
+                    let mask: Vec<bool> = (0..work.groups.len()).map(|h| h != g).collect();
+                    let o = SolveOptions {
+                        group_mask: Some(mask.clone()),
+                        initial_model: Some(sol.model.u.clone()),
+                        initial_stations: sol.stations.iter().map(|s| (s.station, s.position)).collect(),
+                        ..opts.solve.clone()
+                    };
+                    without = Some((fit(layout, &work, &o, &refs)?, mask));
+                }
+                let (fw, mask) = without.as_ref().unwrap();
+                let sw = fw.score_masked(e.cand.effect.as_ref(), Some(mask));
+                let stats = &fw.solution().stats;
+                let p = f_test(&sw, stats.chi2, stats.dof as f64, e.cand.tests);
+                e.without_dominant = Some(p * total_tests as f64 / e.cand.tests as f64);
+                if p * total_tests as f64 / e.cand.tests as f64 > opts.alpha {
+                    continue;
+                }
+            }
             if e.cand.family.global() && e.score.rank > 0 {
                 if folds.is_none() {
-                    let fold = |m: &Vec<bool>| {
-                        fit(layout, obs, &SolveOptions { group_mask: Some(m.clone()), ..opts.solve.clone() }, &refs)
+                    // Started from the fit on all lines: each half is a weaker campaign.
+                    let sol = f.solution();
+                    let warm = SolveOptions {
+                        group_mask: None,
+                        initial_model: Some(sol.model.u.clone()),
+                        initial_stations: sol.stations.iter().map(|s| (s.station, s.position)).collect(),
+                        ..opts.solve.clone()
                     };
+                    let fold = |m: &Vec<bool>| fit(layout, &work, &SolveOptions { group_mask: Some(m.clone()), ..warm.clone() }, &refs);
                     folds = Some((fold(&masks[0])?, fold(&masks[1])?));
                 }
                 let (fa, fb) = folds.as_ref().unwrap();
                 let sa = fa.score_masked(e.cand.effect.as_ref(), Some(&masks[0]));
                 let sb = fb.score_masked(e.cand.effect.as_ref(), Some(&masks[1]));
-                let gain = sb.gain(&sa.estimate) + sa.gain(&sb.estimate);
-                e.cv_gain = Some(gain);
-                if gain <= 0.0 {
-                    continue;
+                // Half of the lines should determine the parameters with about twice the
+                // variance of all lines. Effects that only the crossing of all lines separates
+                // from the rigid-body model (e.g. nonrigid couplings: half the lines absorb
+                // them) cannot be cross-validated this way; they rest on the other criteria.
+                if determines(&e.score, &sa) && determines(&e.score, &sb) {
+                    let gain = sb.gain(&sa.estimate) + sa.gain(&sb.estimate);
+                    e.cv_gain = Some(gain);
+                    if gain <= 0.0 {
+                        continue;
+                    }
                 }
             }
             chosen = Some(k);
             break;
         }
         drop(folds);
+        drop(without);
         rounds.push(
             evaluated
                 .iter()
@@ -243,11 +294,18 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                     evidence: e.evidence,
                     share: e.share,
                     cv_gain: e.cv_gain,
+                    without_dominant_p: e.without_dominant,
                     accepted: Some(k) == chosen,
                 })
                 .collect(),
         );
         let Some(pos) = chosen else { break };
+        if evaluated[pos].cand.family == Family::Local {
+            // Confined to one place better than any catalogue effect explains it: reported as
+            // unexplained, where it is.
+            local = evaluated[pos].cand.hyper.map(|c| locate::cell_label(c as usize));
+            break;
+        }
         let best = evaluated.swap_remove(pos);
         let alternatives: Vec<String> = evaluated
             .iter()
@@ -263,30 +321,35 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         let p_value = (best.p_value * total_tests as f64 / best.cand.tests as f64).min(1.0);
         drop(f);
         selected.push((best.cand.family, best.cand.effect));
-        let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
-        let f = fit(layout, obs, &opts.solve, &refs)?;
-        let sol = f.solution().clone();
+        hypers.push(best.cand.hyper);
+        let sol = refit(layout, &mut work, opts, &selected, &geo, &mut probe_shift)?;
         let (id, coeffs) = sol.effects.last().cloned().expect("the new effect is fitted");
-        let family = best.cand.family;
-        let (parameters, statement) = describe(family, &coeffs, obs, &geo, best.cand.hyper);
         found.push(FoundEffect {
             id,
-            parameters,
+            parameters: Vec::new(),
             coefficients: coeffs,
             delta_rms_m: current.stats.rms_m - sol.stats.rms_m,
             delta_chi2: current.stats.chi2 - sol.stats.chi2,
             evidence: best.evidence,
             p_value,
             rank: best.score.rank,
-            statement,
+            statement: String::new(),
             alternatives,
         });
         current = sol;
     }
+    // Every effect as the final refit (with all of them) estimates it.
+    for (k, e) in found.iter_mut().enumerate() {
+        let coeffs = current.effects[k].1.clone();
+        let (parameters, statement) = describe(selected[k].0, &coeffs, obs, &geo, hypers[k]);
+        e.parameters = parameters;
+        e.statement = statement;
+        e.coefficients = coeffs;
+    }
     let after = current;
     let z1: Vec<f64> = (0..obs.len()).map(|i| after.residuals[i] / after.sigmas[i]).collect();
     let dof_ratio1 = after.stats.dof as f64 / obs.len() as f64;
-    let remaining = locate::locate(obs, &geo, &dirs, &z1, dof_ratio1, opts.alpha);
+    let remaining = locate::locate(&work, &geo, &dirs, &z1, dof_ratio1, opts.alpha);
     let excess_p = locate::chi2_sf(after.stats.chi2, after.stats.dof as f64);
     let unexplained = (excess_p < opts.alpha).then(|| {
         let mut s = format!(
@@ -295,11 +358,22 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
             after.stats.rms_m * 1e6,
             noise_rms(&after) * 1e6
         );
-        let top: Vec<String> = remaining.iter().filter(|l| l.kind != "line" || l.share > 0.1).take(4).map(|l| format!("{} ({})", l.label, l.kind)).collect();
+        let top: Vec<String> = remaining
+            .iter()
+            .filter(|l| l.kind == "spectrum" || l.share > 0.1)
+            .take(4)
+            .map(|l| match l.kind.as_str() {
+                "spectrum" => format!("{} (spectrum)", l.label),
+                _ => format!("{} ({}, {:.0} % of the excess in {:.0} % of the readings)", l.label, l.kind, 100.0 * l.share, 100.0 * l.fraction),
+            })
+            .collect();
         if top.is_empty() {
             s.push_str("; it is spread over the whole campaign (or the noise model underestimates the noise).");
         } else {
             s.push_str(&format!("; it is concentrated in: {}.", top.join("; ")));
+        }
+        if let Some(cell) = &local {
+            s.push_str(&format!(" A local anomaly in the cell {cell} of the volume explains it better than any catalogue effect (a dent, a collision, a local deformation?)."));
         }
         s
     });
@@ -432,6 +506,15 @@ fn propose(
         positions += gr.len() - 1;
         steps.push((best, g, at));
     }
+    // The local competitor: the cell of the volume with the largest excess.
+    let dof_ratio = sol.stats.dof as f64 / obs.len().max(1) as f64;
+    let mut cell_excess = vec![0.0; locate::CELLS];
+    for i in 0..obs.len() {
+        cell_excess[locate::cell(geo, &obs.x[i])] += z[i] * z[i] - dof_ratio;
+    }
+    if let Some((c, _)) = cell_excess.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) {
+        push(Family::Local, Box::new(catalogue::local_anomaly(obs, dirs, geo, c)), locate::CELLS, Some(c as f64), &mut out);
+    }
     steps.sort_by(|a, b| b.0.total_cmp(&a.0));
     for &(_, g, at) in steps.iter().take(3) {
         push(
@@ -474,11 +557,8 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOpt
     let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 {
         (1.0, f64::NEG_INFINITY)
     } else {
-        let rest = (chi2 - score.delta_chi2).max(1e-300);
-        let s2 = rest / (dof - k);
-        let fstat = (score.delta_chi2 / k) / s2;
-        let p = FisherSnedecor::new(k, dof - k).map(|d| d.sf(fstat)).unwrap_or(1.0);
-        let p = (p * cand.tests as f64).min(1.0);
+        let s2 = (chi2 - score.delta_chi2).max(1e-300) / (dof - k);
+        let p = f_test(&score, chi2, dof, cand.tests);
         // BIC with the noise scale estimated under the alternative; the scanned hyper-parameter
         // counts as a parameter.
         let extra = if cand.hyper.is_some() { 1.0 } else { 0.0 };
@@ -488,7 +568,36 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOpt
     let excess = chi2 - dof;
     let share = if excess > 3.0 * (2.0 * dof).sqrt() { score.delta_chi2 / excess } else { 1.0 };
     let _ = opts;
-    Evaluated { cand, score, p_value, evidence, share, cv_gain: None }
+    Evaluated { cand, score, p_value, evidence, share, cv_gain: None, without_dominant: None }
+}
+
+/// P-value of the nested-model F-test of an effect's score against a fit with `chi2` on `dof`
+/// degrees of freedom, corrected for `tests` scanned hypotheses.
+fn f_test(score: &Score, chi2: f64, dof: f64, tests: usize) -> f64 {
+    let k = score.rank as f64;
+    if score.rank == 0 || dof - k < 1.0 {
+        return 1.0;
+    }
+    let s2 = (chi2 - score.delta_chi2).max(1e-300) / (dof - k);
+    let fstat = (score.delta_chi2 / k) / s2;
+    let p = FisherSnedecor::new(k, dof - k).map(|d| d.sf(fstat)).unwrap_or(1.0);
+    (p * tests as f64).min(1.0)
+}
+
+/// The line holding at least a third of the excess chi-square of a fit, if any.
+fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
+    let dof_ratio = sol.stats.dof as f64 / obs.len().max(1) as f64;
+    let excess: Vec<f64> = obs
+        .groups
+        .iter()
+        .map(|g| g.range().map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum::<f64>() - dof_ratio * g.len() as f64)
+        .collect();
+    let total = sol.stats.chi2 - sol.stats.dof as f64;
+    if total <= 3.0 * (2.0 * sol.stats.dof as f64).sqrt() {
+        return None;
+    }
+    let (g, e) = excess.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    (*e >= total / 3.0).then_some(g)
 }
 
 /// Physical parameters and a plain statement for a found effect.
@@ -677,18 +786,9 @@ fn describe(
                 ),
             )
         }
+        Family::Local => (coeffs.to_vec(), "local_anomaly: an error confined to one cell of the volume.".into()),
         Family::Cyclic => {
-            // Amplitude from the per-beam sine/cosine pairs, debiased by their noise.
-            let (mut a2, mut v, mut nb) = (0.0f64, 0.0f64, 0.0f64);
-            for pair in coeffs.chunks(2) {
-                if pair.len() == 2 {
-                    a2 += pair[0].1.powi(2) + pair[1].1.powi(2) - pair[0].2.powi(2) - pair[1].2.powi(2);
-                    v += pair[0].2.powi(2) + pair[1].2.powi(2);
-                    nb += 1.0;
-                }
-            }
-            let amp = (a2 / nb.max(1.0)).max(0.0).sqrt();
-            let sa = (v / nb.max(1.0) / 2.0 / nb.max(1.0)).sqrt();
+            let (amp, sa) = catalogue::cyclic_amplitude(coeffs);
             let note = if geo.fringes_from_records {
                 ""
             } else {
@@ -697,6 +797,71 @@ fn describe(
             (vec![("amplitude_m".into(), amp, sa)], format!("cyclic_nonlinearity: the interferometer has a periodic error of {:.1} +- {:.1} nm, one period per fringe{note}.", amp * 1e9, sa * 1e9))
         }
     }
+}
+
+/// Fits the model with the selected effects. Probe offsets enter the kinematics nonlinearly
+/// (through the tool rotation, which the linear `probe_offset` regressor takes from the first
+/// fit): once that effect is selected, the declared offsets in `work` are moved by its estimate
+/// and the model refitted until the correction is below a hundredth of its uncertainty; the
+/// reported offsets are the total moves (`shift`) plus the last correction.
+fn refit(
+    layout: &ModelLayout,
+    work: &mut Observations,
+    opts: &DiagnoseOptions,
+    selected: &[(Family, Box<dyn Effect>)],
+    geo: &Geometry,
+    shift: &mut [Vector3<f64>],
+) -> Result<Solution, SolveError> {
+    let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
+    let mut sol = fit(layout, work, &opts.solve, &refs)?.into_solution();
+    let Some(slot) = selected.iter().position(|(f, _)| *f == Family::Probe) else { return Ok(sol) };
+    let probe_param = |name: &str| -> Option<(usize, usize)> {
+        let rest = name.strip_prefix("probe")?;
+        let (k, c) = rest.split_once('_')?;
+        Some((k.parse().ok()?, ["dx_m", "dy_m", "dz_m"].iter().position(|n| *n == c)?))
+    };
+    for _ in 0..8 {
+        let mut step = vec![Vector3::zeros(); shift.len()];
+        let mut worst = 0.0f64;
+        for (name, value, sigma) in &sol.effects[slot].1 {
+            if let Some((k, c)) = probe_param(name) {
+                step[k][c] = *value;
+                worst = worst.max(value.abs() / sigma.max(1e-300));
+            }
+        }
+        if worst < 0.01 {
+            break;
+        }
+        for (i, p) in work.p.iter_mut().enumerate() {
+            *p += step[geo.probe_of[i]];
+        }
+        for (s, d) in shift.iter_mut().zip(&step) {
+            *s += d;
+        }
+        sol = fit(layout, work, &opts.solve, &refs)?.into_solution();
+    }
+    for (name, value, _) in &mut sol.effects[slot].1 {
+        if let Some((k, c)) = probe_param(name) {
+            *value += shift[k][c];
+        }
+    }
+    Ok(sol)
+}
+
+/// Whether a fold's score determines an effect's parameters nearly as well as expected from
+/// half of the data: the median ratio of the full to the fold variance is at least 0.1 (about
+/// 0.5 expected).
+fn determines(full: &Score, fold: &Score) -> bool {
+    let var = |s: &Score, j: usize| s.covariance[(j, j)];
+    let mut ratios: Vec<f64> = (0..full.estimate.len().min(fold.estimate.len()))
+        .filter(|&j| var(full, j) > 0.0 && var(fold, j) > 0.0 && var(fold, j).is_finite())
+        .map(|j| var(full, j) / var(fold, j))
+        .collect();
+    if ratios.is_empty() {
+        return false;
+    }
+    ratios.sort_by(f64::total_cmp);
+    ratios[ratios.len() / 2] >= 0.1
 }
 
 /// Readings with the earliest and the latest time.

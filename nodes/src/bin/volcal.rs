@@ -74,8 +74,10 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Print a model's report; optionally write per-axis compensation tables.
-    #[command(after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101")]
+    /// Print a model's report (or a bag's: what was recorded and paired); optionally write per-axis compensation tables.
+    #[command(
+        after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101\n  volcal report bags/sim_short          (a bag: topics, pairs, pairing; and model.json if the solver node left one there)"
+    )]
     Report {
         model: PathBuf,
         /// Write compensation_x.csv, compensation_y.csv, compensation_z.csv here.
@@ -84,6 +86,50 @@ enum Command {
         /// Positions per compensation table.
         #[arg(long, default_value_t = 51)]
         points: usize,
+    },
+    /// Start the ROS 2 nodes of a YAML launch description (ROS 2 launch-file subset).
+    #[command(
+        after_help = "Example:\n  volcal launch launch_configs/sim_campaign_short.yaml --bag /tmp/short --domain 42\n  volcal launch launch_configs/replay.yaml --bag /tmp/short\n\nLaunch arguments are given as name:=value. Node output is forwarded with the node name as prefix. Ctrl-C stops all nodes cleanly; so does the end of a node marked on_exit: shutdown (the sequencer, the solver). Exit status 1 if a node failed."
+    )]
+    Launch {
+        /// Launch file (YAML).
+        file: PathBuf,
+        /// Value of the launch argument `bag` (the bag to record or replay).
+        #[arg(long)]
+        bag: Option<PathBuf>,
+        /// ROS_DOMAIN_ID for the nodes.
+        #[arg(long)]
+        domain: Option<u16>,
+        /// Launch arguments, name:=value.
+        #[arg(value_name = "NAME:=VALUE")]
+        args: Vec<String>,
+    },
+    /// Run one ROS 2 node of the node set (what its own binary, e.g. volcal_recorder, does).
+    #[command(
+        hide = true,
+        after_help = "Example:\n  volcal node recorder --ros-args -p bag:=/tmp/bag",
+        disable_help_flag = true
+    )]
+    Node {
+        /// Node (interferometer, tracer, deflector, machine, environment, sequencer, recorder, solver).
+        name: String,
+        /// Node arguments: --ros-args -p name:=value -r from:=to ...
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
+    /// Inspect a bag: messages per topic, and what was recovered from an unclosed one.
+    #[command(after_help = "Example:\n  volcal bag info bags/sim_short")]
+    Bag {
+        #[command(subcommand)]
+        command: BagCommand,
+    },
+    /// Throughput benchmarks of the recording chain (figures in README).
+    #[command(
+        after_help = "Examples:\n  volcal bench recorder --rate 1000 --duration 60\n  volcal bench recorder --rate 10000 --duration 60 --batch 100\n  volcal bench replay /tmp/volcal-bench-recorder-1234"
+    )]
+    Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
     },
     /// Positioning error along lines (ISO 230-2 style), predicted with uncertainty and optionally
     /// compared with a simulated laser interferometer.
@@ -145,7 +191,7 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Run the whole offline chain on the built-in example and compare with the truth.
+    /// Run the whole chain on the built-in example (offline, then through the ROS 2 node set: launch, record, replay, solve) and compare with the truth.
     #[command(after_help = "Example:\n  volcal demo")]
     Demo {
         /// Keep the files here instead of a temporary directory.
@@ -154,6 +200,36 @@ enum Command {
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Publish an on-the-fly acquisition to the recorder node and count the pairs it records.
+    Recorder {
+        /// Sampling rate of the interferometer and the machine, Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        /// Seconds.
+        #[arg(long, default_value_t = 60.0)]
+        duration: f64,
+        /// Samples per message (1: one message per sample; more: the batched message types).
+        #[arg(long, default_value_t = 1)]
+        batch: usize,
+        /// Keep the bag here (default: a temporary directory, printed).
+        #[arg(long)]
+        bag: Option<PathBuf>,
+        /// Do not publish the pairs on /campaign/pairs (bag only).
+        #[arg(long)]
+        no_publish_pairs: bool,
+    },
+    /// Read and decode every message of a bag; messages per second.
+    Replay { bag: PathBuf },
+}
+
+#[derive(Subcommand)]
+enum BagCommand {
+    /// Messages per topic (read from the MCAP data, not from metadata.yaml).
+    Info { bag: PathBuf },
 }
 
 fn run() -> anyhow::Result<ExitCode> {
@@ -182,9 +258,39 @@ fn run() -> anyhow::Result<ExitCode> {
             eprintln!("wrote {n} grid points to {}", out.display());
         }
         Command::Report { model, compensation_dir, points } => {
-            print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
+            if volcal_nodes::launch_cmd::is_bag(&model) {
+                print!("{}", volcal_nodes::launch_cmd::bag_report(&model, compensation_dir.as_deref(), points)?)
+            } else {
+                print!("{}", commands::report_cmd(&model, compensation_dir.as_deref(), points)?)
+            }
         }
         Command::Demo { workdir, seed } => commands::demo_cmd(workdir.as_deref(), seed)?,
+        Command::Launch { file, bag, domain, args } => {
+            return volcal_nodes::launch_cmd::launch_cmd(&file, bag.as_deref(), domain, &args);
+        }
+        Command::Bench { command: BenchCommand::Recorder { rate, duration, batch, bag, no_publish_pairs } } => {
+            let b = volcal_nodes::bench::RecorderBench {
+                rate_hz: rate,
+                duration_s: duration,
+                batch,
+                bag,
+                publish_pairs: !no_publish_pairs,
+            };
+            let r = volcal_nodes::bench::recorder(&b)?;
+            println!("{}", r.describe(&b));
+            if r.loss() != 0 {
+                return Ok(ExitCode::from(2));
+            }
+        }
+        Command::Bench { command: BenchCommand::Replay { bag } } => {
+            println!("{}", volcal_nodes::bench::replay(&bag)?.describe(&bag))
+        }
+        Command::Node { name, args } => {
+            let (default_name, body) = volcal_nodes::node::by_name(&name)
+                .ok_or_else(|| anyhow::anyhow!("no node {name:?} (expected interferometer, tracer, deflector, machine, environment, sequencer, recorder or solver)"))?;
+            return Ok(volcal_nodes::node::run_with_args(default_name, body, args));
+        }
+        Command::Bag { command: BagCommand::Info { bag } } => print!("{}", volcal_nodes::launch_cmd::bag_info(&bag)?),
         Command::Validate { model, axis, diagonals, line, start, points, probe, truth, machine, runs, seed, out } => {
             let lines = match (axis, diagonals, line) {
                 (Some(a), _, _) => {

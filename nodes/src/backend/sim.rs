@@ -1,0 +1,499 @@
+//! Simulated backends: the components of `volcal_sim` (virtual machine, deflector,
+//! interferometer, tracer, environment) driven step by step by the sim nodes.
+//!
+//! Every sim node builds the same [`SimWorld`] from the machine file, the plan and the seed, so
+//! that they agree on the true error model and the stations without being told. What only one
+//! node can know (the actual beam after the deflector's pointing error, the actual reflector
+//! position including the machine's repeatability) travels on `/sim/truth/...` as [`Truth`].
+//! The solver never subscribes to those topics.
+
+use super::*;
+use crate::commands::{load_plan, sim_config};
+use crate::machine::{Machine, DEMO_MACHINE};
+use crate::ros::NodeArgs;
+use anyhow::{anyhow, Result};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::collections::VecDeque;
+use volcal::environment::AirIndexEquation;
+use volcal_sim::{BeamLine, Plan, SimConfig};
+
+/// Below this return-signal strength the interferometer loses its count.
+pub const LOSS_THRESHOLD: f64 = 0.05;
+
+/// The simulated world shared by the sim nodes.
+pub struct SimWorld {
+    pub machine: Machine,
+    pub plan: Plan,
+    pub cfg: SimConfig,
+    pub seed: u64,
+    /// Time zero of the simulated laboratory (air drift), nanoseconds since the epoch.
+    pub epoch_ns: i64,
+}
+
+impl SimWorld {
+    /// From node parameters `machine` (default: the built-in demo machine), `plan` (default: the
+    /// patent's example) and `seed` (default 1). The time origin is `VOLCAL_SIM_EPOCH_NS`
+    /// (set by `volcal launch` for all nodes) or now.
+    pub fn from_args(args: &NodeArgs) -> Result<SimWorld> {
+        let machine = match args.path("machine")? {
+            Some(p) => Machine::load(&p)?,
+            None => Machine::parse(DEMO_MACHINE)?,
+        };
+        let plan = load_plan(args.path("plan")?.as_deref())?;
+        let seed: u64 = args.get_or("seed", 1)?;
+        let epoch_ns =
+            std::env::var("VOLCAL_SIM_EPOCH_NS").ok().and_then(|s| s.parse().ok()).unwrap_or_else(crate::ros::now_ns);
+        let cfg = sim_config(&machine, plan.clone(), seed);
+        Ok(SimWorld { machine, plan, cfg, seed, epoch_ns })
+    }
+
+    /// Seconds of simulated laboratory time at `ns`.
+    pub fn t_s(&self, ns: i64) -> f64 {
+        (ns - self.epoch_ns) as f64 * 1e-9
+    }
+
+    /// An independent random stream for one component.
+    pub fn rng(&self, component: u64) -> ChaCha8Rng {
+        ChaCha8Rng::seed_from_u64(self.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ component)
+    }
+}
+
+fn info_of(i: &volcal_sim::Interferometer, instrument: &str) -> InstrumentInfo {
+    InstrumentInfo {
+        instrument: instrument.to_string(),
+        wavelength_vac_m: i.wavelength_vac_m,
+        compensated: i.assumed_index.is_none(),
+        assumed_index: i.assumed_index.unwrap_or(1.0),
+        air_equation: match i.air_equation {
+            AirIndexEquation::Ciddor => "ciddor".into(),
+            AirIndexEquation::Edlen => "edlen".into(),
+        },
+    }
+}
+
+/// One reflector truth sample: stamp, motion id, at rest, actual position, velocity.
+type ReflectorSample = (i64, u64, bool, Point3<f64>, Vector3<f64>);
+
+/// Recent reflector truth samples, to find the one for a position or interpolate in time.
+#[derive(Default)]
+struct ReflectorHistory {
+    samples: VecDeque<ReflectorSample>,
+}
+
+impl ReflectorHistory {
+    fn push(&mut self, t: &Truth) {
+        if let Truth::Reflector { stamp_ns, position_id, settled, actual, velocity } = *t {
+            // Kept in stamp order (DDS delivers one writer's samples in order; this guards
+            // against anything else).
+            let i = self.samples.partition_point(|s| s.0 <= stamp_ns);
+            self.samples.insert(i, (stamp_ns, position_id, settled, actual, velocity));
+            // A few seconds at the machine's sampling rate: more than any reading waits.
+            while self.samples.len() > 8192 {
+                self.samples.pop_front();
+            }
+        }
+    }
+
+    /// The actual position at rest at the target of `position_id`, or (free-running) at `at_ns`,
+    /// interpolated between the truth samples around it: `None` until the machine has published
+    /// a sample at or after `at_ns` (the simulated instrument never reads the future).
+    fn actual(&self, at_ns: i64, position_id: Option<u64>) -> Option<Point3<f64>> {
+        match position_id {
+            Some(id) => self.samples.iter().rev().find(|s| s.1 == id && s.2).map(|s| s.3),
+            None => {
+                let i = self.samples.partition_point(|s| s.0 < at_ns);
+                if i == self.samples.len() {
+                    return None;
+                }
+                let s1 = &self.samples[i];
+                if i == 0 || s1.0 == at_ns {
+                    return (s1.0 == at_ns).then_some(s1.3);
+                }
+                let s0 = &self.samples[i - 1];
+                let f = (at_ns - s0.0) as f64 / (s1.0 - s0.0) as f64;
+                Some(s0.3 + (s1.3 - s0.3) * f)
+            }
+        }
+    }
+}
+
+/// Counter state shared by the simulated interferometer and tracer.
+#[derive(Default)]
+struct Counter {
+    zero: f64,
+    valid: bool,
+    /// A new beam or station: the next reading at point 0 zeroes the count normally.
+    fresh: bool,
+}
+
+impl Counter {
+    /// Applies the signal to the count; returns the reading relative to the count origin.
+    fn count(&mut self, length: f64, signal: f64, point: Option<u32>) -> (f64, bool) {
+        if signal < LOSS_THRESHOLD {
+            self.valid = false;
+            return (length - self.zero, true);
+        }
+        let mut broken = false;
+        if !self.valid {
+            // A fresh beam zeroed at its first point is normal; anything else re-establishes the
+            // count mid-line, so the origin of what follows is new.
+            broken = !(self.fresh && point.is_none_or(|p| p == 0));
+            self.zero = length;
+            self.valid = true;
+            self.fresh = false;
+        }
+        (length - self.zero, broken)
+    }
+
+    fn restart(&mut self) {
+        self.valid = false;
+        self.fresh = true;
+    }
+}
+
+/// The simulated fixed-beam interferometer.
+pub struct SimInterferometer {
+    world_cfg: SimConfig,
+    epoch_ns: i64,
+    rng: ChaCha8Rng,
+    /// Relative noise of the signal-strength reading.
+    pub signal_noise: f64,
+    /// The beam the deflector last reported (station, beam).
+    ids: Option<(u32, u32)>,
+    /// The true beams, each from the instant it settled, in time order.
+    beams: Vec<(i64, u32, u32, BeamLine)>,
+    /// The beam the count refers to.
+    counted: Option<(i64, u32, u32)>,
+    reflector: ReflectorHistory,
+    counter: Counter,
+}
+
+impl SimInterferometer {
+    pub fn new(world: &SimWorld, signal_noise: f64) -> SimInterferometer {
+        SimInterferometer {
+            world_cfg: world.cfg.clone(),
+            epoch_ns: world.epoch_ns,
+            rng: world.rng(0x494e_5446),
+            signal_noise,
+            ids: None,
+            beams: Vec::new(),
+            counted: None,
+            reflector: ReflectorHistory::default(),
+            counter: Counter::default(),
+        }
+    }
+
+    /// The true beam for a reading at `at_ns`: for a triggered reading, the beam the deflector
+    /// reports now (once its truth has arrived); for a free-running sample, which may be
+    /// computed a little after its instant, the beam that was settled at that instant.
+    fn beam_for(&self, at_ns: i64, triggered: bool) -> Option<(i64, u32, u32, BeamLine)> {
+        if triggered {
+            self.beams.last().filter(|b| Some((b.1, b.2)) == self.ids).copied()
+        } else {
+            self.beams.iter().rev().find(|b| b.0 <= at_ns).copied()
+        }
+    }
+}
+
+/// Lateral distance of `p` from a beam.
+fn lateral(beam: &BeamLine, p: &Point3<f64>) -> f64 {
+    let v = p - beam.origin;
+    (v - beam.direction * beam.direction.dot(&v)).norm()
+}
+
+impl InterferometerBackend for SimInterferometer {
+    fn info(&self) -> InstrumentInfo {
+        info_of(&self.world_cfg.interferometer, "simulated laser interferometer (volcal_sim)")
+    }
+
+    fn new_beam(&mut self, station: u32, beam: u32) {
+        // The count restarts with the first reading on the new true beam (see `read`).
+        self.ids = Some((station, beam));
+    }
+
+    fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
+        // `None` until the true beam (and the reflector truth) for this reading have arrived.
+        let Some((since, s, b, beam)) = self.beam_for(at_ns, position_id.is_some()) else { return Ok(None) };
+        let Some(actual) = self.reflector.actual(at_ns, position_id) else { return Ok(None) };
+        if self.counted != Some((since, s, b)) {
+            self.counted = Some((since, s, b));
+            self.counter.restart();
+        }
+        let d = lateral(&beam, &actual);
+        let noise: f64 = self.rng.random_range(-1.0..1.0) * self.signal_noise;
+        let signal = (self.world_cfg.deflector.signal_strength(d) * (1.0 + noise)).clamp(0.0, 1.0);
+        let length = beam.direction.dot(&(actual - beam.origin));
+        let (rel, broken) = self.counter.count(length, signal, point);
+        let air = self.world_cfg.environment.air_at((at_ns - self.epoch_ns) as f64 * 1e-9);
+        let value = self.world_cfg.interferometer.read(rel, 0.0, &air, &mut self.rng);
+        Ok(Some(LengthReading { value_m: value, signal_strength: signal, beam_broken: broken }))
+    }
+
+    fn truth(&mut self, t: &Truth) {
+        match t {
+            Truth::Beam { stamp_ns, station, beam, origin, direction } => {
+                let line = BeamLine { origin: *origin, direction: *direction };
+                if !self.beams.iter().any(|x| x.0 == *stamp_ns && (x.1, x.2) == (*station, *beam)) {
+                    let i = self.beams.partition_point(|x| x.0 <= *stamp_ns);
+                    self.beams.insert(i, (*stamp_ns, *station, *beam, line));
+                }
+                if self.beams.len() > 16 {
+                    self.beams.remove(0);
+                }
+            }
+            Truth::Reflector { .. } => self.reflector.push(t),
+        }
+    }
+
+    fn simulated(&self) -> bool {
+        true
+    }
+}
+
+/// The simulated laser tracer: stations from the plan, ranges to the actual reflector.
+pub struct SimTracer {
+    world_cfg: SimConfig,
+    rng: ChaCha8Rng,
+    stations: Vec<Point3<f64>>,
+    station: Option<u32>,
+    reflector: ReflectorHistory,
+    counter: Counter,
+    /// Extra dead path after a lost count (the tracer re-establishes it at an unknown value).
+    extra_dead_path: f64,
+}
+
+impl SimTracer {
+    pub fn new(world: &SimWorld) -> Result<SimTracer> {
+        let travel = world.machine.layout.travel;
+        let stations = world.plan.path_tasks(&travel).map_err(|e| anyhow!("{e}"))?.iter().map(|t| t.position).collect();
+        Ok(SimTracer {
+            world_cfg: world.cfg.clone(),
+            rng: world.rng(0x5452_4143),
+            stations,
+            station: None,
+            reflector: ReflectorHistory::default(),
+            counter: Counter::default(),
+            extra_dead_path: 0.0,
+        })
+    }
+}
+
+impl TracerBackend for SimTracer {
+    fn info(&self) -> InstrumentInfo {
+        info_of(&self.world_cfg.interferometer, "simulated laser tracer (volcal_sim)")
+    }
+
+    fn new_station(&mut self, station: u32) {
+        if self.station != Some(station) {
+            self.station = Some(station);
+            self.counter.restart();
+        }
+    }
+
+    fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
+        let Some(station) = self.station else { return Ok(None) };
+        let q = *self
+            .stations
+            .get(station as usize)
+            .ok_or_else(|| anyhow!("tracer station {station} is not in the plan ({} stations)", self.stations.len()))?;
+        let Some(actual) = self.reflector.actual(at_ns, position_id) else { return Ok(None) };
+        let range = self.world_cfg.tracer.read(&q, &actual, &mut self.rng);
+        // The tracer keeps its count unless the reflector leaves its view; the counter models
+        // re-establishment with a new dead path.
+        let (_, broken) = self.counter.count(0.0, 1.0, point);
+        if broken {
+            self.extra_dead_path = self.rng.random_range(0.0..1e-3);
+        }
+        Ok(Some(LengthReading { value_m: range - self.extra_dead_path, signal_strength: 1.0, beam_broken: broken }))
+    }
+
+    fn truth(&mut self, t: &Truth) {
+        self.reflector.push(t);
+    }
+
+    fn simulated(&self) -> bool {
+        true
+    }
+}
+
+/// The simulated beam deflector.
+pub struct SimDeflector {
+    deflector: volcal_sim::Deflector,
+    rng: ChaCha8Rng,
+    /// Settling time after a command, seconds (machine file value unless overridden).
+    pub settle_s: f64,
+    state: Option<(f64, f64, Point3<f64>, BeamLine, i64)>,
+}
+
+impl SimDeflector {
+    pub fn new(world: &SimWorld, settle_s: Option<f64>) -> SimDeflector {
+        SimDeflector {
+            deflector: world.cfg.deflector.clone(),
+            rng: world.rng(0x4445_464c),
+            settle_s: settle_s.unwrap_or(world.cfg.deflector.settle_s),
+            state: None,
+        }
+    }
+}
+
+impl DeflectorBackend for SimDeflector {
+    fn command(&mut self, pivot: Point3<f64>, az: f64, el: f64, now_ns: i64) -> Result<()> {
+        let beam = self.deflector.point(&pivot, az, el, &mut self.rng);
+        self.state = Some((az, el, pivot, beam, now_ns + (self.settle_s * 1e9) as i64));
+        Ok(())
+    }
+
+    fn readback(&mut self, now_ns: i64) -> DeflectorReadback {
+        match self.state {
+            None => DeflectorReadback { azimuth_rad: 0.0, elevation_rad: 0.0, settled: false, geometry: None },
+            Some((az, el, pivot, _, until)) => DeflectorReadback {
+                azimuth_rad: az,
+                elevation_rad: el,
+                settled: now_ns >= until,
+                geometry: Some((pivot, volcal_sim::instruments::direction_from_angles(az, el))),
+            },
+        }
+    }
+
+    fn next_change_ns(&self) -> Option<i64> {
+        self.state.map(|s| s.4)
+    }
+
+    fn truth_beam(&mut self, now_ns: i64) -> Option<(Point3<f64>, Vector3<f64>)> {
+        self.state.filter(|s| now_ns >= s.4).map(|s| (s.3.origin, s.3.direction))
+    }
+}
+
+/// The simulated machine: straight-line motion at the commanded speed; the actual reflector
+/// position from the true error model, with the repeatability drawn once per arrival.
+pub struct SimMachine {
+    vm: volcal_sim::VirtualMachine,
+    rng: ChaCha8Rng,
+    from: Point3<f64>,
+    cmd: MotionCommand,
+    t0_ns: i64,
+    at_rest_actual: Option<(u64, Point3<f64>)>,
+}
+
+impl SimMachine {
+    pub fn new(world: &SimWorld, now_ns: i64) -> SimMachine {
+        let home = world.machine.layout.travel.centre();
+        SimMachine {
+            vm: world.cfg.machine.clone(),
+            rng: world.rng(0x4d41_4348),
+            from: home,
+            cmd: MotionCommand { position_id: 0, target: home, probe_offset: Vector3::zeros(), speed_mps: 1.0 },
+            t0_ns: now_ns,
+            at_rest_actual: None,
+        }
+    }
+
+    fn arrival_ns(&self) -> i64 {
+        let d = (self.cmd.target - self.from).norm();
+        self.t0_ns + (d / self.cmd.speed_mps * 1e9) as i64
+    }
+}
+
+impl MachineBackend for SimMachine {
+    fn move_to(&mut self, cmd: &MotionCommand, now_ns: i64) -> Result<()> {
+        if !(cmd.speed_mps > 0.0 && cmd.speed_mps.is_finite()) {
+            anyhow::bail!("motion {}: speed {} m/s is not a positive number", cmd.position_id, cmd.speed_mps);
+        }
+        let here = self.state(now_ns).position;
+        self.from = here;
+        self.cmd = *cmd;
+        self.t0_ns = now_ns;
+        self.at_rest_actual = None;
+        Ok(())
+    }
+
+    fn state(&mut self, now_ns: i64) -> MachineState {
+        let arrive = self.arrival_ns();
+        let (position, velocity, in_position) = if now_ns >= arrive {
+            (self.cmd.target, Vector3::zeros(), true)
+        } else {
+            let d = self.cmd.target - self.from;
+            let dir = d / d.norm();
+            let s = (now_ns - self.t0_ns).max(0) as f64 * 1e-9 * self.cmd.speed_mps;
+            (self.from + dir * s, dir * self.cmd.speed_mps, false)
+        };
+        MachineState {
+            position,
+            velocity,
+            probe_offset: self.cmd.probe_offset,
+            in_position,
+            position_id: self.cmd.position_id,
+        }
+    }
+
+    fn next_change_ns(&self) -> Option<i64> {
+        Some(self.arrival_ns())
+    }
+
+    fn truth(&mut self, now_ns: i64) -> Option<Truth> {
+        let s = self.state(now_ns);
+        let actual = if s.in_position {
+            match self.at_rest_actual {
+                Some((id, a)) if id == s.position_id => a,
+                _ => {
+                    let a = self.vm.actual(&s.position, &s.probe_offset, &mut self.rng);
+                    self.at_rest_actual = Some((s.position_id, a));
+                    a
+                }
+            }
+        } else {
+            self.vm.exact(&s.position, &s.probe_offset)
+        };
+        Some(Truth::Reflector {
+            stamp_ns: now_ns,
+            position_id: s.position_id,
+            settled: s.in_position,
+            actual,
+            velocity: s.velocity,
+        })
+    }
+}
+
+/// Simulated environment sensors (`EnvironmentSim` of the machine file).
+pub struct SimEnvironment {
+    env: volcal_sim::EnvironmentSim,
+    epoch_ns: i64,
+}
+
+impl SimEnvironment {
+    pub fn new(world: &SimWorld) -> SimEnvironment {
+        SimEnvironment { env: world.cfg.environment.clone(), epoch_ns: world.epoch_ns }
+    }
+}
+
+impl EnvironmentBackend for SimEnvironment {
+    fn read(&mut self, now_ns: i64) -> Result<EnvironmentSample> {
+        let t = (now_ns - self.epoch_ns) as f64 * 1e-9;
+        Ok(EnvironmentSample {
+            air: self.env.record_air.then(|| self.env.air_at(t)),
+            machine_temp_c: self.env.record_machine_temp.then_some(self.env.machine_temp_c),
+            materials: Vec::new(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counter_flags_mid_line_restarts_only() {
+        let mut c = Counter::default();
+        c.restart();
+        assert_eq!(c.count(1.0, 1.0, Some(0)), (0.0, false));
+        assert_eq!(c.count(1.5, 1.0, Some(1)), (0.5, false));
+        // Lost, then re-established mid-beam: a new origin, flagged.
+        assert!(c.count(1.6, 0.01, Some(2)).1);
+        assert_eq!(c.count(1.7, 1.0, Some(3)), (0.0, true));
+        // A node restarted mid-beam (fresh, but first reading at point 7) is flagged too.
+        let mut c = Counter::default();
+        c.restart();
+        assert!(c.count(2.0, 1.0, Some(7)).1);
+    }
+}

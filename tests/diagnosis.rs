@@ -1,0 +1,284 @@
+//! Concealed-effect scenarios for the diagnosis tests (issue 6) and the SNR calibration.
+//!
+//! Signal-to-noise ratio of an effect in a campaign: simulate the campaign with and without the
+//! effect from the same seed (identical noise), fit the rigid-body model to both, and take the
+//! largest RMS over one line of the difference of the residuals, divided by the readings'
+//! standard uncertainty. It is the effect's signature left in the residuals after the rigid-body
+//! model has absorbed what it can, which is what any diagnosis can see.
+
+use volcal::campaign::{prepare, Campaign, Observations};
+use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis};
+use volcal::{solve, ErrorModel};
+use volcal_nodes::commands::sim_config;
+use volcal_nodes::machine::{Machine, DEMO_MACHINE};
+use volcal_sim::effects::{from_spec, EffectContext};
+use volcal_sim::simulate::InjectedTruth;
+use volcal_sim::{simulate, Acquisition, Injection, Plan, SimConfig};
+
+/// A concealed-effect scenario: which effect, and how its strength scales.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    pub id: &'static str,
+    /// Injection spec with `{a}` standing for the strength.
+    pub spec: &'static str,
+    /// Strength used to measure the SNR (the calibration scales it linearly).
+    pub reference: f64,
+    /// Air-temperature rate per unit strength (air refraction scales the environment).
+    pub air_rate_per_unit: f64,
+    /// Low-noise precision setup (interferometer periodic errors are nanometres).
+    pub precision: bool,
+}
+
+/// The catalogue scenarios.
+pub fn scenarios() -> Vec<Scenario> {
+    let s = |id, spec, reference| Scenario { id, spec, reference, air_rate_per_unit: 0.0, precision: false };
+    vec![
+        Scenario { id: "air_refraction", spec: "air_refraction", reference: 1.0, air_rate_per_unit: 1.0, precision: false },
+        s("material_expansion", "material_expansion:rate_k_per_h={a}", 0.5),
+        s("setup_drift", "setup_drift:vx_m_per_s={a},vy_m_per_s=0,vz_m_per_s={a}", 5e-9),
+        s("latency", "latency:latency_s={a}", 10e-6),
+        s("reversal", "reversal:backlash_x_m={a},backlash_y_m=0,backlash_z_m=0", 1e-6),
+        s("periodic_pitch", "periodic_pitch:axis=0,period_m=0.016,amplitude_m={a}", 0.3e-6),
+        s("nonrigid", "nonrigid:coefficient_m={a}", 2e-6),
+        Scenario { id: "probe_offset", spec: "probe_offset:dx_m=0,dy_m=0,dz_m={a}", reference: -0.03, air_rate_per_unit: 0.0, precision: true },
+        s("beam_break", "beam_break:station=1,beam=4,index=30,step_m={a}", -0.6e-6),
+        Scenario { id: "cyclic_nonlinearity", spec: "cyclic_nonlinearity:amplitude_m={a}", reference: 10e-9, air_rate_per_unit: 0.0, precision: true },
+    ]
+}
+
+/// An effect outside the catalogue: a local bump of the volumetric error (a dent in a
+/// guideway) centred at (0.8, 0.2, -0.15) m, radius 80 mm.
+pub fn unmodelled() -> Scenario {
+    Scenario { id: "unmodelled_bump", spec: "unmodelled_bump:amplitude_m={a}", reference: 1.5e-6, air_rate_per_unit: 0.0, precision: false }
+}
+
+/// The machine of the diagnosis campaigns: the demo CMM with 8-interval B-splines; the
+/// precision variant has nanometre noise.
+pub fn machine(precision: bool) -> Machine {
+    let mut text = DEMO_MACHINE.replace("intervals: 12", "intervals: 8");
+    if precision {
+        text = text
+            .replace("noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7", "noise: {interferometer_m: 2.0e-9, repeatability_m: 5.0e-9")
+            .replace("repeatability_m: 2.0e-7\n", "repeatability_m: 5.0e-9\n")
+            .replace("interferometer: {noise_m: 5.0e-8", "interferometer: {noise_m: 2.0e-9")
+            .replace("centring_m: 1.0e-6", "centring_m: 1.0e-7");
+    }
+    Machine::parse(&text).unwrap()
+}
+
+/// The campaign plan: 3 positions x 16 beams x 30 points, out and back on the fly at three
+/// speeds, so that latency (proportional to speed) and reversal (not) can be told apart.
+pub fn plan() -> Plan {
+    Plan {
+        directions_per_station: 16,
+        points_per_beam: 30,
+        bidirectional: true,
+        acquisition: Acquisition::OnTheFly { speed_mps: 0.05 },
+        speeds_mps: vec![0.02, 0.05, 0.1],
+        ..Plan::patent_example()
+    }
+}
+
+/// A simulated campaign of a scenario at strength `a` (0: the clean campaign of the same seed).
+pub fn campaign(sc: &Scenario, a: f64, seed: u64) -> (Machine, SimConfig, Campaign, Vec<InjectedTruth>) {
+    let m = machine(sc.precision);
+    let mut cfg = sim_config(&m, plan(), 1000 + seed);
+    cfg.environment.record_air = true;
+    cfg.environment.air_temp_rate_k_per_h = sc.air_rate_per_unit * a;
+    let ctx = EffectContext { air_start: cfg.environment.air, wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation, travel: m.layout.travel };
+    let injections: Vec<Box<dyn Injection>> = if a == 0.0 {
+        Vec::new()
+    } else {
+        sc.spec.replace("{a}", &a.to_string()).split('+').map(|s| from_spec(s, &ctx).unwrap()).collect()
+    };
+    let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
+    let out = simulate(&cfg, &refs, 2000 + seed).unwrap();
+    (m, cfg, out.campaign, out.truth.injected)
+}
+
+/// Prepared observations of a campaign.
+pub fn observations(m: &Machine, c: &Campaign) -> Observations {
+    prepare(c, &m.layout.travel, &m.expansion).unwrap().obs
+}
+
+/// SNR of a scenario at strength `a` (see the module documentation).
+pub fn snr(sc: &Scenario, a: f64, seed: u64) -> f64 {
+    let (m, _, with, _) = campaign(sc, a, seed);
+    let (_, _, without, _) = campaign(sc, 0.0, seed);
+    let (ow, oo) = (observations(&m, &with), observations(&m, &without));
+    let sw = solve(&m.layout, &ow, &m.solve_options(), &[]).unwrap();
+    let so = solve(&m.layout, &oo, &m.solve_options(), &[]).unwrap();
+    let sigma = sw.sigmas[0];
+    ow.groups
+        .iter()
+        .map(|g| {
+            let r2: f64 = g.range().map(|i| (sw.residuals[i] - so.residuals[i]).powi(2)).sum();
+            (r2 / g.len() as f64).sqrt() / sigma
+        })
+        .fold(0.0, f64::max)
+}
+
+/// SNR of the raw signal: the largest RMS over one line of the effect's change of the
+/// residuals under the model fitted to the clean campaign (not refitted, so nothing is absorbed
+/// beyond each line's origin and direction), over the readings' standard uncertainty. This is
+/// the effect's size in the readings, the definition the diagnosis tests use.
+pub fn snr_raw(sc: &Scenario, a: f64, seed: u64) -> f64 {
+    let (m, _, with, _) = campaign(sc, a, seed);
+    let (_, _, without, _) = campaign(sc, 0.0, seed);
+    let (ow, oo) = (observations(&m, &with), observations(&m, &without));
+    let clean = solve(&m.layout, &oo, &m.solve_options(), &[]).unwrap();
+    let at_clean = volcal::SolveOptions {
+        initial_model: Some(clean.model.u.clone()),
+        initial_stations: clean.stations.iter().map(|s| (s.station, s.position)).collect(),
+        max_iterations: 0,
+        ..m.solve_options()
+    };
+    let rw = solve(&m.layout, &ow, &at_clean, &[]).unwrap();
+    let ro = solve(&m.layout, &oo, &at_clean, &[]).unwrap();
+    ow.groups
+        .iter()
+        .map(|g| {
+            let d: Vec<f64> = g.range().map(|i| rw.residuals[i] - ro.residuals[i]).collect();
+            let mean = d.iter().sum::<f64>() / d.len() as f64;
+            (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt() / rw.sigmas[g.start]
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The strength that gives SNR 3 (the effects are linear in their strength at these sizes).
+pub fn strength_for_snr3(sc: &Scenario) -> f64 {
+    sc.reference * 3.0 / snr(sc, sc.reference, 0)
+}
+
+/// Diagnosis options for a campaign made with `cfg`.
+pub fn options(m: &Machine, cfg: &SimConfig) -> DiagnoseOptions {
+    DiagnoseOptions::new(m.solve_options(), Optics { wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation })
+}
+
+/// RMS volumetric difference between a model and the truth after removing the gauge freedom
+/// ([`crate::gauge_distance`]), over a grid and the campaign's probe offsets.
+pub fn map_error(model: &ErrorModel, truth: &ErrorModel, g: volcal::Gauge, obs: &Observations) -> f64 {
+    let mut offsets: Vec<nalgebra::Vector3<f64>> = Vec::new();
+    for p in &obs.p {
+        if !offsets.iter().any(|q| (q - p).norm() < 1e-9) {
+            offsets.push(*p);
+        }
+    }
+    crate::gauge_distance(model, truth, g, &offsets, 0.2).1
+}
+
+/// One diagnosis run of a scenario at strength `a`.
+pub struct Run {
+    pub diagnosis: Diagnosis,
+    pub truth: Vec<InjectedTruth>,
+    pub truth_model: ErrorModel,
+    pub rms_clean_m: f64,
+    pub map_error_before: f64,
+    pub map_error_after: f64,
+    pub gauge: volcal::Gauge,
+    /// Distinct probe offsets in order of first appearance (the diagnosis's probe numbering).
+    pub probes: Vec<nalgebra::Vector3<f64>>,
+}
+
+pub fn run(sc: &Scenario, a: f64, seed: u64) -> Run {
+    let (m, cfg, c, truth) = campaign(sc, a, seed);
+    let obs = observations(&m, &c);
+    let d = diagnose(&m.layout, &obs, &options(&m, &cfg)).unwrap();
+    let (_, _, clean, _) = campaign(sc, 0.0, seed);
+    let clean_obs = observations(&m, &clean);
+    let rms_clean_m = solve(&m.layout, &clean_obs, &m.solve_options(), &[]).unwrap().stats.rms_m;
+    let truth_model = cfg.machine.truth.clone();
+    let mut probes: Vec<nalgebra::Vector3<f64>> = Vec::new();
+    for p in &obs.p {
+        if !probes.iter().any(|q| (q - p).norm() < 1e-9) {
+            probes.push(*p);
+        }
+    }
+    Run {
+        map_error_before: map_error(&d.before.model, &truth_model, m.gauge, &obs),
+        map_error_after: map_error(&d.after.model, &truth_model, m.gauge, &obs),
+        diagnosis: d,
+        truth,
+        truth_model,
+        rms_clean_m,
+        gauge: m.gauge,
+        probes,
+    }
+}
+
+/// How a run compares with its truth.
+#[derive(Debug)]
+pub struct Check {
+    /// The scenario's effect is the first (strongest) one reported.
+    pub named_first: bool,
+    /// Standardised errors `(estimate - truth) / uncertainty` of the effect's primary
+    /// parameters (those the injection made non-zero); empty when the effect was not found.
+    pub z: Vec<f64>,
+    /// Hyper-parameters found from the data (period, break location) equal the truth.
+    pub located: bool,
+    /// Residual RMS after the refit within 10 % of the clean campaign's.
+    pub rms_at_floor: bool,
+    /// The identified error map is closer to the truth after the refit than before.
+    pub map_closer: bool,
+}
+
+fn truth_param(t: &[InjectedTruth], id: &str, name: &str) -> f64 {
+    t.iter().find(|e| e.id == id).and_then(|e| e.parameters.iter().find(|p| p.0 == name)).map(|p| p.1).unwrap_or_else(|| panic!("no truth {id}.{name}"))
+}
+
+/// Compares a run of scenario `sc` with its truth.
+pub fn check(sc: &Scenario, r: &Run) -> Check {
+    let d = &r.diagnosis;
+    let found = d.effects.iter().find(|e| e.id == sc.id);
+    let truth = |name: &str| truth_param(&r.truth, sc.id, name);
+    // (found parameter name, truth value) of the primary parameters.
+    let primary: Vec<(String, f64)> = match sc.id {
+        "air_refraction" => vec![("uncompensated_fraction".into(), truth("uncompensated_fraction"))],
+        "material_expansion" => ["alpha_x_per_k", "alpha_y_per_k", "alpha_z_per_k"].iter().map(|n| (n.to_string(), truth(n))).collect(),
+        "setup_drift" => {
+            let names: Vec<String> = found.map(|f| f.parameters.iter().map(|p| p.0.clone()).collect()).unwrap_or_default();
+            names
+                .into_iter()
+                .filter_map(|n| {
+                    let c = ["vx", "vy", "vz"].iter().position(|c| n.ends_with(&format!("_{c}_m_per_s")))?;
+                    let t = truth(["vx_m_per_s", "vy_m_per_s", "vz_m_per_s"][c]);
+                    (t != 0.0).then_some((n, t))
+                })
+                .collect()
+        }
+        "latency" => vec![("latency_s".into(), truth("latency_s"))],
+        "reversal" => vec![("backlash_x_m".into(), truth("backlash_x_m"))],
+        "periodic_pitch" | "cyclic_nonlinearity" => vec![("amplitude_m".into(), truth("amplitude_m"))],
+        "nonrigid" => vec![("ez:P1(x)P2(y)".into(), truth("ez:P1(x)P2(y)"))],
+        "probe_offset" => {
+            let declared = nalgebra::Vector3::new(0.0, 0.12, -0.10);
+            let k = r.probes.iter().position(|p| (p - declared).norm() < 1e-9).expect("the displaced probe is in the plan");
+            vec![(format!("probe{k}_dz_m"), truth("dz_m"))]
+        }
+        "beam_break" => vec![("step_m".into(), truth("step_m"))],
+        other => panic!("no check for {other}"),
+    };
+    let z = match found {
+        Some(f) => primary
+            .iter()
+            .map(|(n, t)| {
+                let p = f.parameters.iter().find(|p| &p.0 == n).unwrap_or_else(|| panic!("{} reports no {n}", sc.id));
+                (p.1 - t) / p.2
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let get = |n: &str| found.and_then(|f| f.parameters.iter().find(|p| p.0 == n)).map(|p| p.1);
+    let located = match sc.id {
+        "periodic_pitch" => get("period_m").is_some_and(|p| (p / truth("period_m") - 1.0).abs() < 0.01) && get("axis") == Some(truth("axis")),
+        "beam_break" => ["station", "beam", "index"].iter().all(|n| get(n) == Some(truth(n))),
+        _ => found.is_some(),
+    };
+    Check {
+        named_first: d.effects.first().is_some_and(|e| e.id == sc.id),
+        z,
+        located,
+        rms_at_floor: d.rms_after_m <= 1.1 * r.rms_clean_m,
+        map_closer: r.map_error_after < r.map_error_before,
+    }
+}
