@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 use volcal_nodes::machine::{Machine, DEMO_MACHINE};
-use volcal_nodes::viz::live::{DeflectorState, LivePair, LiveViz};
+use volcal_nodes::viz::live::{DeflectorState, LiveViz};
 use volcal_nodes::viz::{blueprint, RerunArgs};
 use volcal_sim::plan::{task_direction, Acquisition};
 use volcal_sim::{simulate, Plan};
@@ -55,24 +55,14 @@ fn main() -> anyhow::Result<()> {
             }
         }
         viz.machine_position(r.t_s, r.x, r.p);
-        viz.pair(&LivePair {
-            t_s: r.t_s,
-            kind: r.kind,
-            station: r.station,
-            line: r.line,
-            l_m: r.l_m,
-            x: r.x,
-            p: r.p,
-            beam_broken: r.beam_broken,
-        });
+        viz.pair(r);
         if r.t_s >= next_flush {
             viz.flush()?;
             flushes += 1;
             next_flush = r.t_s + 0.05;
         }
     }
-    viz.flush()?;
-    viz.recording().flush_blocking()?;
+    viz.finish()?;
     let elapsed = start.elapsed().as_secs_f64();
     let size = std::fs::metadata(&out)?.len();
     let _ = std::fs::remove_file(&out);

@@ -10,9 +10,9 @@ use rerun::external::re_sdk_types::blueprint::archetypes as bp;
 use volcal::{Axis, Motion, Travel};
 
 /// The 3D scene: volume, stations, beams and points, the volumetric map, live state, looked
-/// at from the front left, above. Entities in `hide` (e.g. the actual points, which coincide
+/// at from the front left, above, from `distance` times the default distance. Entities in `hide` (e.g. the actual points, which coincide
 /// with the indicated ones at this scale) stay in the recording but out of the view.
-pub fn scene_view(title: &str, travel: Option<&Travel>, hide: impl IntoIterator<Item = String>) -> View {
+pub fn scene_view(title: &str, travel: Option<&Travel>, distance: f64, hide: impl IntoIterator<Item = String>) -> View {
     let mut q: Vec<String> =
         [paths::MACHINE, paths::STATIONS, "map", paths::LIVE].iter().map(|r| format!("+ /{r}/**")).collect();
     q.extend(hide.into_iter().map(|p| format!("- /{p}")));
@@ -22,7 +22,7 @@ pub fn scene_view(title: &str, travel: Option<&Travel>, hide: impl IntoIterator<
     let Some(travel) = travel else { return view };
     let c = travel.centre();
     let d = (travel.max_corner() - travel.min_corner()).norm();
-    let eye = c + nalgebra::Vector3::new(-0.35, -0.8, 0.55) * d;
+    let eye = c + nalgebra::Vector3::new(-0.35, -0.8, 0.55) * (d * distance);
     view.property(
         "EyeControls3D",
         &bp::EyeControls3D::new()
@@ -85,7 +85,7 @@ pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout 
     .shares([1.2, 1.0]);
     let top = Container::horizontal([
         left.into(),
-        scene_view("Volume: beams, stations, volumetric error", Some(travel), hide).into(),
+        scene_view("Volume: beams, stations, volumetric error", Some(travel), 1.0, hide).into(),
         series_view("Residuals (µm) over the abscissa along each line (mm)", paths::RESIDUALS).into(),
     ])
     .shares([0.85, 1.1, 1.3]);
@@ -125,7 +125,7 @@ pub fn live(travel: Option<&Travel>) -> Layout {
     .shares([1.6, 1.0]);
     let root = Container::horizontal([
         left.into(),
-        scene_view("Volume: stations, beams, points, current position", travel, []).into(),
+        scene_view("Volume: stations, beams, points, current position", travel, 1.35, []).into(),
         right.into(),
     ])
     .shares([0.85, 1.4, 1.2]);

@@ -21,7 +21,7 @@ use nalgebra::{Point3, Vector3};
 use rerun::{RecordingStream, TimeColumn};
 use std::collections::BTreeMap;
 use volcal::beam::{fit_line, orient_with_readings};
-use volcal::campaign::{LineGroup, ObsKind, MIN_BEAM_POINTS};
+use volcal::campaign::{LineGroup, ObsKind, Reading, MIN_BEAM_POINTS};
 use volcal::Travel;
 use volcal_sim::plan::segment_in_travel;
 
@@ -44,22 +44,6 @@ pub const LIVE_RUNNING_RMS: &str = "live/running_rms";
 pub const LIVE_CURRENT_POINT: &str = "live/current_point";
 pub const LIVE_DEFLECTOR: &str = "live/deflector";
 pub const LIVE_STATUS: &str = "live/status";
-
-/// One synchronised pair as recorded (`/campaign/pairs`): a reading and the indicated
-/// coordinates at the same instant.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LivePair {
-    /// Seconds from the campaign start.
-    pub t_s: f64,
-    pub kind: ObsKind,
-    pub station: u32,
-    pub line: u32,
-    pub l_m: f64,
-    pub x: Point3<f64>,
-    pub p: Vector3<f64>,
-    /// The count was lost before this reading: a new segment (new origin) starts here.
-    pub beam_broken: bool,
-}
 
 /// What the deflector does now.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -120,7 +104,7 @@ struct LineState {
 }
 
 impl LineState {
-    fn push(&mut self, pair: &LivePair) {
+    fn push(&mut self, pair: &Reading) {
         let pt = pair.x + pair.p;
         if self.n % self.stride == 0 {
             self.display.push(f32p(&pt));
@@ -158,6 +142,8 @@ pub struct LiveViz {
     deflector_dirty: bool,
     dirty_stations: Vec<u32>,
     last_status_t: f64,
+    /// Extra status line from the caller (sequencer progress, the node's own lag).
+    note: String,
 }
 
 fn kind_key(k: ObsKind) -> u8 {
@@ -192,6 +178,7 @@ impl LiveViz {
             deflector_dirty: false,
             dirty_stations: Vec::new(),
             last_status_t: f64::NEG_INFINITY,
+            note: String::new(),
         })
     }
 
@@ -240,6 +227,11 @@ impl LiveViz {
         self.deflector_dirty = true;
     }
 
+    /// A line of the caller's shown in the status text (e.g. the sequencer's progress).
+    pub fn note(&mut self, text: String) {
+        self.note = text;
+    }
+
     /// The machine's indicated position (the latest one is drawn at the next flush).
     pub fn machine_position(&mut self, t_s: f64, x: Point3<f64>, p: Vector3<f64>) {
         self.t_s = self.t_s.max(t_s);
@@ -247,8 +239,9 @@ impl LiveViz {
         self.position_dirty = true;
     }
 
-    /// A synchronised pair (logged at the next flush).
-    pub fn pair(&mut self, pair: &LivePair) {
+    /// A synchronised pair as recorded (`/campaign/pairs`), as a campaign reading (logged at the
+    /// next flush).
+    pub fn pair(&mut self, pair: &Reading) {
         self.t_s = self.t_s.max(pair.t_s);
         self.pairs += 1;
         let key = (kind_key(pair.kind), pair.station, pair.line);
@@ -288,6 +281,14 @@ impl LiveViz {
                 self.retiring.push(old);
             }
         }
+    }
+
+    /// Logs everything received and the status, at the end of the campaign (or of watching).
+    pub fn finish(&mut self) -> anyhow::Result<FlushStats> {
+        let s = self.flush()?;
+        self.log_status()?;
+        self.rec.flush_blocking()?;
+        Ok(s)
     }
 
     /// Logs everything received since the last flush.
@@ -457,7 +458,7 @@ impl LiveViz {
         let deflector =
             format!("**Deflector**: {}", self.deflector.map(|d| d.describe()).unwrap_or_else(|| "no state yet".into()));
         let text = format!(
-            "**Campaign time** {:.1} s · **{}** readings ({:.0} Hz) on {} lines\n\n{current}\n\n{deflector}\n\n\
+            "**Campaign time** {:.1} s · **{}** readings ({:.0} Hz) on {} lines\n\n{current}\n\n{deflector}\n\n{}\
              **Running residual RMS** (line fits, before calibration): {}\n\n\
              Points in their station's colour, the white point is the reflector now, the arrow the beam \
              (green settled, orange moving); faded lines are the commanded beams.",
@@ -465,6 +466,7 @@ impl LiveViz {
             self.pairs,
             self.rate_hz,
             self.lines.len(),
+            if self.note.is_empty() { String::new() } else { format!("{}\n\n", self.note) },
             self.running_rms_m().map(|r| format!("{:.3} µm", r * 1e6)).unwrap_or_else(|| "-".into()),
         );
         self.rec.log(LIVE_STATUS, &rerun::TextDocument::from_markdown(text))?;
@@ -487,12 +489,12 @@ mod tests {
         t0: f64,
         sigma: f64,
         rng: &mut impl Rng,
-    ) -> Vec<LivePair> {
+    ) -> Vec<Reading> {
         (0..n)
             .map(|i| {
                 let s = 0.1 + 0.8 * i as f64 / n as f64;
                 let noise: f64 = rng.random_range(-1.0..1.0) * sigma * 3f64.sqrt();
-                LivePair {
+                Reading {
                     t_s: t0 + i as f64 * 1e-3,
                     kind: ObsKind::Beam,
                     station,
@@ -500,7 +502,11 @@ mod tests {
                     l_m: 5.0 + s + noise,
                     x: o + d * s,
                     p: Vector3::zeros(),
+                    air: None,
+                    machine_temp_c: None,
+                    velocity: None,
                     beam_broken: false,
+                    source_line: i,
                 }
             })
             .collect()
@@ -533,9 +539,9 @@ mod tests {
         assert!(viz.lines[0].points.is_empty() && viz.lines[0].retired, "the oldest line is retired");
         // A reading of a retired line, or after a beam break, starts a new segment.
         let late =
-            LivePair { beam_broken: false, ..beam(1, 0, Point3::origin(), Vector3::x(), 1, 40.0, 0.0, &mut rng)[0] };
+            Reading { beam_broken: false, ..beam(1, 0, Point3::origin(), Vector3::x(), 1, 40.0, 0.0, &mut rng)[0] };
         viz.pair(&late);
-        viz.pair(&LivePair { beam_broken: true, t_s: 40.1, ..late });
+        viz.pair(&Reading { beam_broken: true, t_s: 40.1, ..late });
         assert_eq!(viz.lines.len(), 5);
         assert_eq!((viz.lines[3].group.segment, viz.lines[4].group.segment), (1, 2));
         viz.flush().unwrap();
