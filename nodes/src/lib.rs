@@ -15,6 +15,7 @@
 //!   [`bench`] (`volcal bench`), [`demo_chain`] (the node-set half of `volcal demo`).
 //! - [`validation`], [`paper_cmd`], [`merge`]: the tracer issue's commands (`volcal validate`,
 //!   `volcal paper`, `volcal merge`).
+//! - [`viz`]: Rerun visualisation (recorded and live).
 
 pub mod backend;
 pub mod bag;
@@ -38,6 +39,7 @@ pub mod report;
 pub mod ros;
 pub mod truth_file;
 pub mod validation;
+pub mod viz;
 
 /// `volcal <version>` for provenance records.
 pub fn software_version() -> String {

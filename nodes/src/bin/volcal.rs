@@ -73,7 +73,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     },
     /// Identify the error model from a campaign (CSV or MCAP bag).
     #[command(
-        after_help = "Example:\n  volcal solve campaign.csv --machine launch_configs/machines/demo_cmm.yaml --out model.json\n\nExit status: 0 complete; 3 model written but some functions are not identifiable (see the report); 4 not converged; 1 error."
+        after_help = "Example:\n  volcal solve campaign.csv --machine launch_configs/machines/demo_cmm.yaml --out model.json\n  volcal solve campaign.csv --machine launch_configs/machines/demo_cmm.yaml --out model.json --rerun solve.rrd\n\nExit status: 0 complete; 3 model written but some functions are not identifiable (see the report); 4 not converged; 1 error."
     )]
     Solve {
         /// Campaign file (.csv, or .mcap from the recorder).
@@ -83,6 +83,8 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Model file (JSON) to write.
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        rerun: volcal_nodes::viz::RerunArgs,
     },
     /// Predict the volumetric error and its uncertainty at given points.
     #[command(
@@ -279,8 +281,11 @@ fn run() -> anyhow::Result<ExitCode> {
                 eprintln!("wrote the diagnosis to {}", j.display());
             }
         }
-        Command::Solve { campaign, machine, out } => {
-            let (_, status) = commands::solve_cmd(&campaign, &machine, &out)?;
+        Command::Solve { campaign, machine, out, rerun } => {
+            rerun.validate()?;
+            let (solved, status) = commands::solve_cmd(&campaign, &machine, &out)?;
+            let name = format!("volcal solve {}", campaign.display());
+            volcal_nodes::viz::solve::record(&rerun, &name, &solved.prepared.obs, &solved.solution)?;
             return Ok(match status {
                 SolveStatus::Complete => ExitCode::SUCCESS,
                 SolveStatus::Partial => ExitCode::from(3),

@@ -11,6 +11,7 @@
 //! | [`sequencer`] | positions, readings, `/deflector/state`, `/campaign/pairs` | `/deflector/command`, `/machine/command`, `/sequencer/trigger`, `/sequencer/status` |
 //! | [`recorder`] | everything above | `/campaign/pairs`; writes the bag |
 //! | [`solver`] | (a bag) | `/error_model` (transient-local); writes the model JSON |
+//! | [`viz`] | `/campaign/pairs`, positions, `/deflector/*`, `/sequencer/status` | (Rerun: live view, `.rrd`) |
 //!
 //! The sim backends of the instrument nodes also exchange `/sim/truth/beam` and
 //! `/sim/truth/reflector`; no other node reads them.
@@ -24,6 +25,7 @@ pub mod recorder;
 pub mod sequencer;
 pub mod solver;
 pub mod tracer;
+pub mod viz;
 
 use crate::ros::node::init_logging;
 use crate::ros::{shutdown, NodeArgs, RosNode};
@@ -37,7 +39,7 @@ pub type NodeMain = fn(&mut RosNode) -> Result<()>;
 /// `(default node name, entry point)`. `volcal node NAME` runs them from the `volcal` binary,
 /// which `volcal launch` falls back to when the node binaries were not built.
 pub fn by_name(name: &str) -> Option<(&'static str, NodeMain)> {
-    let table: [(&'static str, NodeMain); 8] = [
+    let table: [(&'static str, NodeMain); 9] = [
         ("interferometer", interferometer::run),
         ("tracer", tracer::run),
         ("deflector", deflector::run),
@@ -46,6 +48,7 @@ pub fn by_name(name: &str) -> Option<(&'static str, NodeMain)> {
         ("sequencer", sequencer::run),
         ("recorder", recorder::run),
         ("solver", solver::run),
+        ("viz", viz::run),
     ];
     let short = name.strip_prefix("volcal_").unwrap_or(name);
     table.into_iter().find(|(n, _)| *n == short)

@@ -1,0 +1,141 @@
+//! `volcal solve --rerun`: the recording is verified by the official Rerun CLI of the crate's
+//! version (`rerun rrd verify`, from the pinned checker venv) and checked by an independent
+//! Python reader (`check_rrd.py`, rerun-sdk) for the entity paths the views rely on.
+//! `--rerun-connect` is checked the same way against a real Rerun gRPC receiver on loopback.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn volcal(dir: &Path, args: &[&str]) -> std::process::Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_volcal")).current_dir(dir).args(args).output().unwrap();
+    assert!(
+        out.status.success() || out.status.code() == Some(3),
+        "volcal {args:?} failed: {}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A small simulated campaign (3 stations x 10 beams x 20 points: the recording stays small)
+/// in a fresh directory with the demo machine.
+fn small_campaign(name: &str) -> PathBuf {
+    let dir = volcal_tests::scratch(name);
+    std::fs::write(dir.join("machine.yaml"), volcal_nodes::machine::DEMO_MACHINE).unwrap();
+    std::fs::write(dir.join("plan.yaml"), "directions_per_station: 10\npoints_per_beam: 20\n").unwrap();
+    volcal(
+        &dir,
+        &["simulate", "--machine", "machine.yaml", "--plan", "plan.yaml", "--seed", "3", "--out", "campaign.csv"],
+    );
+    dir
+}
+
+/// Runs `check_rrd.py` on a recording of `dir/campaign.csv`.
+fn check_entities(py: &Path, rrd: &Path, dir: &Path) {
+    let check = Command::new(py)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check_rrd.py"))
+        .arg(rrd)
+        .arg(dir.join("campaign.csv"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "check_rrd.py failed:\n{text}{}", String::from_utf8_lossy(&check.stderr));
+    eprintln!("{text}");
+}
+
+#[test]
+fn solve_recording_verifies_and_has_the_expected_entities() {
+    let dir = small_campaign("rerun-solve");
+    let solve = ["solve", "campaign.csv", "--machine", "machine.yaml", "--out", "model.json", "--rerun", "solve.rrd"];
+    volcal(&dir, &solve);
+    let rrd = dir.join("solve.rrd");
+    let size = std::fs::metadata(&rrd).expect("no recording written").len();
+    assert!(size < 1_000_000, "recording of a 600-reading campaign is {size} bytes");
+
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let rerun = py.parent().unwrap().join("rerun");
+    let verify = Command::new(&rerun).args(["rrd", "verify"]).arg(&rrd).output().unwrap();
+    assert!(
+        verify.status.success(),
+        "rerun rrd verify failed:\n{}{}",
+        String::from_utf8_lossy(&verify.stdout),
+        String::from_utf8_lossy(&verify.stderr)
+    );
+    check_entities(&py, &rrd, &dir);
+}
+
+/// The `rerun` executable shipped in the venv's rerun-sdk (`site-packages/rerun_sdk/rerun_cli`).
+fn rerun_binary(py: &Path) -> PathBuf {
+    let lib = py.parent().unwrap().parent().unwrap().join("lib");
+    std::fs::read_dir(&lib)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.path().join("site-packages/rerun_sdk/rerun_cli/rerun"))
+        .find(|p| p.exists())
+        .unwrap_or_else(|| panic!("no rerun_sdk/rerun_cli/rerun under {}", lib.display()))
+}
+
+#[test]
+fn solve_streams_to_a_running_viewer() {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = small_campaign("rerun-connect");
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    // A Rerun gRPC receiver on loopback that streams what it gets to a file: the viewer binary
+    // of the venv itself (its `rerun` entry point would run it as a child process).
+    let mut receiver = Command::new(rerun_binary(&py))
+        .args(["--bind", "127.0.0.1", "--port", &port.to_string(), "--save", "received.rrd"])
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // The receiver ignores SIGINT/SIGTERM while saving; a streamed file needs no finishing.
+    let stop = |r: &mut std::process::Child| {
+        let _ = r.kill();
+        let _ = r.wait();
+    };
+    let start = Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        if start.elapsed() > Duration::from_secs(30) {
+            stop(&mut receiver);
+            panic!("the Rerun receiver did not listen on port {port}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let addr = format!("127.0.0.1:{port}");
+    volcal(
+        &dir,
+        &["solve", "campaign.csv", "--machine", "machine.yaml", "--out", "model.json", "--rerun-connect", &addr],
+    );
+    // volcal flushes before exiting; wait for the receiver to have written everything.
+    let rrd = dir.join("received.rrd");
+    let (mut last, mut stable_since) = (0, Instant::now());
+    while stable_since.elapsed() < Duration::from_secs(1) && start.elapsed() < Duration::from_secs(60) {
+        let size = std::fs::metadata(&rrd).map(|m| m.len()).unwrap_or(0);
+        if size != last {
+            (last, stable_since) = (size, Instant::now());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    stop(&mut receiver);
+    // A streamed file has no footer (rrd verify wants one); its content is what counts.
+    check_entities(&py, &rrd, &dir);
+}
+
+#[test]
+fn bad_rerun_flags_are_refused_before_solving() {
+    let dir = volcal_tests::scratch("rerun-flags");
+    for (flag, value, says) in
+        [("--rerun", "solve.txt", "must end in .rrd"), ("--rerun-connect", "http://", "not a Rerun gRPC address")]
+    {
+        let out = Command::new(env!("CARGO_BIN_EXE_volcal"))
+            .current_dir(&dir)
+            .args(["solve", "missing.csv", "--machine", "missing.yaml", "--out", "model.json", flag, value])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains(flag) && err.contains(says) && !err.contains("missing.csv"), "{flag} {value}: {err}");
+    }
+}
