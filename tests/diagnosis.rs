@@ -33,23 +33,47 @@ pub struct Scenario {
 pub fn scenarios() -> Vec<Scenario> {
     let s = |id, spec, reference| Scenario { id, spec, reference, air_rate_per_unit: 0.0, precision: false };
     vec![
-        Scenario { id: "air_refraction", spec: "air_refraction", reference: 1.0, air_rate_per_unit: 1.0, precision: false },
+        Scenario {
+            id: "air_refraction",
+            spec: "air_refraction",
+            reference: 1.0,
+            air_rate_per_unit: 1.0,
+            precision: false,
+        },
         s("material_expansion", "material_expansion:rate_k_per_h={a}", 0.5),
         s("setup_drift", "setup_drift:vx_m_per_s={a},vy_m_per_s=0,vz_m_per_s={a}", 5e-9),
         s("latency", "latency:latency_s={a}", 10e-6),
         s("reversal", "reversal:backlash_x_m={a},backlash_y_m=0,backlash_z_m=0", 1e-6),
         s("periodic_pitch", "periodic_pitch:axis=0,period_m=0.016,amplitude_m={a}", 0.3e-6),
         s("nonrigid", "nonrigid:coefficient_m={a}", 2e-6),
-        Scenario { id: "probe_offset", spec: "probe_offset:dx_m=0,dy_m=0,dz_m={a}", reference: -0.03, air_rate_per_unit: 0.0, precision: true },
+        Scenario {
+            id: "probe_offset",
+            spec: "probe_offset:dx_m=0,dy_m=0,dz_m={a}",
+            reference: -0.03,
+            air_rate_per_unit: 0.0,
+            precision: true,
+        },
         s("beam_break", "beam_break:station=1,beam=4,index=30,step_m={a}", -0.6e-6),
-        Scenario { id: "cyclic_nonlinearity", spec: "cyclic_nonlinearity:amplitude_m={a}", reference: 10e-9, air_rate_per_unit: 0.0, precision: true },
+        Scenario {
+            id: "cyclic_nonlinearity",
+            spec: "cyclic_nonlinearity:amplitude_m={a}",
+            reference: 10e-9,
+            air_rate_per_unit: 0.0,
+            precision: true,
+        },
     ]
 }
 
 /// An effect outside the catalogue: a local bump of the volumetric error (a dent in a
 /// guideway) centred at (0.8, 0.2, -0.15) m, radius 80 mm.
 pub fn unmodelled() -> Scenario {
-    Scenario { id: "unmodelled_bump", spec: "unmodelled_bump:amplitude_m={a}", reference: 1.5e-6, air_rate_per_unit: 0.0, precision: false }
+    Scenario {
+        id: "unmodelled_bump",
+        spec: "unmodelled_bump:amplitude_m={a}",
+        reference: 1.5e-6,
+        air_rate_per_unit: 0.0,
+        precision: false,
+    }
 }
 
 /// The machine of the diagnosis campaigns (`launch_configs/machines/diagnosis_cmm*.yaml`):
@@ -72,7 +96,12 @@ pub fn campaign(sc: &Scenario, a: f64, seed: u64) -> (Machine, SimConfig, Campai
     let m = machine(sc.precision);
     let mut cfg = sim_config(&m, plan(), 1000 + seed);
     cfg.environment.air_temp_rate_k_per_h = sc.air_rate_per_unit * a;
-    let ctx = EffectContext { air_start: cfg.environment.air, wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation, travel: m.layout.travel };
+    let ctx = EffectContext {
+        air_start: cfg.environment.air,
+        wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
+        air_equation: cfg.interferometer.air_equation,
+        travel: m.layout.travel,
+    };
     let injections: Vec<Box<dyn Injection>> = if a == 0.0 {
         Vec::new()
     } else {
@@ -136,10 +165,8 @@ pub fn snr_raw(sc: &Scenario, a: f64, seed: u64) -> f64 {
 /// smallest SNR it gives (at the seed where it is smallest). The signatures are nearly linear in
 /// the strength; a few corrections at the worst seed take care of the rest.
 pub fn strength_for_snr3(sc: &Scenario, seeds: std::ops::Range<u64>) -> (f64, f64) {
-    let (worst, min) = seeds
-        .map(|s| (s, snr(sc, sc.reference, s)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("at least one seed");
+    let (worst, min) =
+        seeds.map(|s| (s, snr(sc, sc.reference, s))).min_by(|a, b| a.1.total_cmp(&b.1)).expect("at least one seed");
     let mut a = sc.reference * 3.0 / min;
     let mut at = snr(sc, a, worst);
     for _ in 0..4 {
@@ -154,7 +181,10 @@ pub fn strength_for_snr3(sc: &Scenario, seeds: std::ops::Range<u64>) -> (f64, f6
 
 /// Diagnosis options for a campaign made with `cfg`.
 pub fn options(m: &Machine, cfg: &SimConfig) -> DiagnoseOptions {
-    DiagnoseOptions::new(m.solve_options(), Optics { wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation })
+    DiagnoseOptions::new(
+        m.solve_options(),
+        Optics { wavelength_vac_m: cfg.interferometer.wavelength_vac_m, air_equation: cfg.interferometer.air_equation },
+    )
 }
 
 /// RMS volumetric difference between a model and the truth after removing the gauge freedom
@@ -251,7 +281,8 @@ pub fn primary_parameters(
         "nonrigid" => vec![("ez:P1(x)P2(y)".into(), t("ez:P1(x)P2(y)"))],
         "probe_offset" => {
             let declared = nalgebra::Vector3::new(0.0, 0.12, -0.10);
-            let k = probes.iter().position(|p| (p - declared).norm() < 1e-9).expect("the displaced probe is in the plan");
+            let k =
+                probes.iter().position(|p| (p - declared).norm() < 1e-9).expect("the displaced probe is in the plan");
             vec![(format!("probe{k}_dz_m"), t("dz_m"))]
         }
         "beam_break" => vec![("step_m".into(), t("step_m"))],
@@ -289,7 +320,10 @@ pub fn check(sc: &Scenario, r: &Run) -> Check {
     };
     let get = |n: &str| found.and_then(|f| f.parameters.iter().find(|p| p.0 == n)).map(|p| p.1);
     let located = match sc.id {
-        "periodic_pitch" => get("period_m").is_some_and(|p| (p / truth("period_m") - 1.0).abs() < 0.01) && get("axis") == Some(truth("axis")),
+        "periodic_pitch" => {
+            get("period_m").is_some_and(|p| (p / truth("period_m") - 1.0).abs() < 0.01)
+                && get("axis") == Some(truth("axis"))
+        }
         "beam_break" => ["station", "beam", "index"].iter().all(|n| get(n) == Some(truth(n))),
         _ => found.is_some(),
     };

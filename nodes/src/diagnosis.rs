@@ -240,8 +240,8 @@ pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Pat
     let machine = Machine::load(machine_path)?;
     let campaign = load_campaign(campaign_path)?;
     let source = campaign_path.display().to_string();
-    let prepared = prepare(&campaign, &machine.layout.travel, &machine.expansion)
-        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let prepared =
+        prepare(&campaign, &machine.layout.travel, &machine.expansion).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     for w in &prepared.warnings {
         eprintln!("warning: {source}: {w}");
     }

@@ -22,7 +22,12 @@ fn diagnose(campaign: &Path, machine: &Path, json: &Path) -> (DiagnosisFile, Str
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    assert!(out.status.success(), "volcal diagnose {}: {}\n{stdout}", campaign.display(), String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "volcal diagnose {}: {}\n{stdout}",
+        campaign.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
     (DiagnosisFile::read(json).unwrap(), stdout)
 }
 
@@ -64,7 +69,8 @@ fn concealed_campaigns_are_diagnosed_blind() {
         let machine = machine_for(name);
         let (d, report) = diagnose(&campaign, &machine, &dir.join(format!("{name}.json")));
         // Only now look at the truth.
-        let truth = TruthFile::load(&repo_root().join("tests/fixtures/concealed").join(format!("{name}.truth.json"))).unwrap();
+        let truth =
+            TruthFile::load(&repo_root().join("tests/fixtures/concealed").join(format!("{name}.truth.json"))).unwrap();
         let ids: Vec<&str> = d.effects.iter().map(|e| e.id.as_str()).collect();
         eprintln!(
             "{name}: found {ids:?}, RMS {:.4} -> {:.4} um (noise model {:.4}){}",
@@ -86,12 +92,19 @@ fn concealed_campaigns_are_diagnosed_blind() {
                 let m = Machine::load(&machine).unwrap();
                 let obs = prepare(&load_campaign(&campaign).unwrap(), &m.layout.travel, &m.expansion).unwrap().obs;
                 let found: Vec<String> = e.parameters.keys().cloned().collect();
-                for (p, v) in diagnosis::primary_parameters(&t.id, &truth.injected, &found, &diagnosis::distinct_probes(&obs)) {
+                for (p, v) in
+                    diagnosis::primary_parameters(&t.id, &truth.injected, &found, &diagnosis::distinct_probes(&obs))
+                {
                     let (est, u) = (e.parameters[&p], e.uncertainty[&p]);
                     eprintln!("  {p}: {est:.6e} +- {u:.2e} (truth {v:.6e}, z {:.2})", (est - v) / u);
                     assert!((est - v).abs() <= 3.0 * u, "{name}: {p} = {est:e} +- {u:e}, truth {v:e}");
                 }
-                assert!(d.rms_after_m <= 1.1 * d.noise_rms_m, "{name}: RMS after {:e} vs noise {:e}", d.rms_after_m, d.noise_rms_m);
+                assert!(
+                    d.rms_after_m <= 1.1 * d.noise_rms_m,
+                    "{name}: RMS after {:e} vs noise {:e}",
+                    d.rms_after_m,
+                    d.noise_rms_m
+                );
             }
         }
     }

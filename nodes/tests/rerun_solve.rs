@@ -3,6 +3,8 @@
 //! Python reader (`check_rrd.py`, rerun-sdk) for the entity paths the views rely on.
 //! `--rerun-connect` is checked the same way against a real Rerun gRPC receiver on loopback.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -33,15 +35,7 @@ fn small_campaign(name: &str) -> PathBuf {
 
 /// Runs `check_rrd.py` on a recording of `dir/campaign.csv`.
 fn check_entities(py: &Path, rrd: &Path, dir: &Path) {
-    let check = Command::new(py)
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check_rrd.py"))
-        .arg(rrd)
-        .arg(dir.join("campaign.csv"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&check.stdout);
-    assert!(check.status.success(), "check_rrd.py failed:\n{text}{}", String::from_utf8_lossy(&check.stderr));
-    eprintln!("{text}");
+    common::rrd::check_entities(py, &[rrd.as_os_str(), dir.join("campaign.csv").as_os_str()]);
 }
 
 #[test]
@@ -54,14 +48,7 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
     assert!(size < 1_000_000, "recording of a 600-reading campaign is {size} bytes");
 
     let Some(py) = volcal_tests::checker_python() else { return };
-    let rerun = py.parent().unwrap().join("rerun");
-    let verify = Command::new(&rerun).args(["rrd", "verify"]).arg(&rrd).output().unwrap();
-    assert!(
-        verify.status.success(),
-        "rerun rrd verify failed:\n{}{}",
-        String::from_utf8_lossy(&verify.stdout),
-        String::from_utf8_lossy(&verify.stderr)
-    );
+    common::rrd::verify(&py, &rrd);
     check_entities(&py, &rrd, &dir);
 }
 

@@ -146,8 +146,10 @@ fn two_effects_combined_are_both_found() {
     let drift = scenario("setup_drift");
     let air = scenario("air_refraction");
     let (ad, aa) = (diagnosis::strength_for_snr3(&drift, 0..SEEDS).0, diagnosis::strength_for_snr3(&air, 0..SEEDS).0);
-    let spec: &'static str = Box::leak(format!("{}+air_refraction", drift.spec.replace("{a}", &ad.to_string())).into_boxed_str());
-    let sc = Scenario { id: "setup_drift+air_refraction", spec, reference: 1.0, air_rate_per_unit: aa, precision: false };
+    let spec: &'static str =
+        Box::leak(format!("{}+air_refraction", drift.spec.replace("{a}", &ad.to_string())).into_boxed_str());
+    let sc =
+        Scenario { id: "setup_drift+air_refraction", spec, reference: 1.0, air_rate_per_unit: aa, precision: false };
     let mut both = 0;
     let mut floor = 0;
     for seed in 0..SEEDS {
@@ -185,7 +187,9 @@ fn an_effect_outside_the_catalogue_is_reported_unexplained_where_it_is() {
         unnamed += (names.is_empty() && d.unexplained.is_some()) as usize;
         located += d.unexplained.as_ref().is_some_and(|u| u.contains(cell)) as usize;
     }
-    eprintln!("bump at amplitude {a:.3e} m: unexplained and unnamed in {unnamed}/{SEEDS}, located in {located}/{SEEDS}");
+    eprintln!(
+        "bump at amplitude {a:.3e} m: unexplained and unnamed in {unnamed}/{SEEDS}, located in {located}/{SEEDS}"
+    );
     assert!(unnamed >= 19, "unexplained without a catalogue name in only {unnamed} of {SEEDS}");
     assert!(located >= 19, "the report points at the dent's cell in only {located} of {SEEDS}");
 }

@@ -406,9 +406,8 @@ pub fn setup_drift(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) ->
 
 /// `latency`: the coordinates lag the abscissae by `tau`: `n . v tau`.
 pub fn latency(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -> Option<TabulatedEffect> {
-    geo.velocity_recorded.then(|| {
-        tabulate("latency", vec!["latency_s".into()], obs, |i, out| out[0] = dirs[i].dot(&geo.velocity[i]))
-    })
+    geo.velocity_recorded
+        .then(|| tabulate("latency", vec!["latency_s".into()], obs, |i, out| out[0] = dirs[i].dot(&geo.velocity[i])))
 }
 
 /// `reversal`: backlash `b_k`: the position lags half of it behind each axis's last move:
@@ -486,9 +485,7 @@ pub fn probe_offset(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry) -
 /// an excess confined to one place is not forced into a campaign-wide name.
 pub fn local_anomaly(obs: &Observations, dirs: &[Vector3<f64>], geo: &Geometry, cell: usize) -> TabulatedEffect {
     let axes = ["x", "y", "z"];
-    let names = (0..3)
-        .flat_map(|c| ["1", "x", "y", "z"].map(move |t| format!("e{}:{t}", axes[c])))
-        .collect();
+    let names = (0..3).flat_map(|c| ["1", "x", "y", "z"].map(move |t| format!("e{}:{t}", axes[c]))).collect();
     tabulate("local_anomaly", names, obs, |i, out| {
         if super::locate::cell(geo, &obs.x[i]) == cell {
             let u = [1.0, geo.unit(0, obs.x[i].x), geo.unit(1, obs.x[i].y), geo.unit(2, obs.x[i].z)];
@@ -546,7 +543,6 @@ pub fn cyclic(obs: &Observations, geo: &Geometry) -> CyclicEffect {
     CyclicEffect { names, slot_of_group, group_of: geo.group_of.clone(), fringes: geo.fringes.clone() }
 }
 
-
 /// Amplitude of the cyclic error and its standard uncertainty from the per-beam sine and cosine
 /// coefficients (name, value, uncertainty): the mean over beams of `s^2 + c^2` debiased by
 /// their noise. The uncertainty comes from the scatter of the beams' values (it includes what
@@ -556,7 +552,9 @@ pub fn cyclic_amplitude(coeffs: &[(String, f64, f64)]) -> (f64, f64) {
     let per_beam: Vec<(f64, f64)> = coeffs
         .chunks(2)
         .filter(|p| p.len() == 2)
-        .map(|p| (p[0].1.powi(2) + p[1].1.powi(2) - p[0].2.powi(2) - p[1].2.powi(2), (p[0].2.powi(2) + p[1].2.powi(2)) / 2.0))
+        .map(|p| {
+            (p[0].1.powi(2) + p[1].1.powi(2) - p[0].2.powi(2) - p[1].2.powi(2), (p[0].2.powi(2) + p[1].2.powi(2)) / 2.0)
+        })
         .collect();
     let nb = per_beam.len().max(1) as f64;
     let a2 = per_beam.iter().map(|b| b.0).sum::<f64>() / nb;

@@ -258,7 +258,9 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                         initial_stations: sol.stations.iter().map(|s| (s.station, s.position)).collect(),
                         ..opts.solve.clone()
                     };
-                    let fold = |m: &Vec<bool>| fit(layout, &work, &SolveOptions { group_mask: Some(m.clone()), ..warm.clone() }, &refs);
+                    let fold = |m: &Vec<bool>| {
+                        fit(layout, &work, &SolveOptions { group_mask: Some(m.clone()), ..warm.clone() }, &refs)
+                    };
                     folds = Some((fold(&masks[0])?, fold(&masks[1])?));
                 }
                 let (fa, fb) = folds.as_ref().unwrap();
@@ -513,7 +515,13 @@ fn propose(
         cell_excess[locate::cell(geo, &obs.x[i])] += z[i] * z[i] - dof_ratio;
     }
     if let Some((c, _)) = cell_excess.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) {
-        push(Family::Local, Box::new(catalogue::local_anomaly(obs, dirs, geo, c)), locate::CELLS, Some(c as f64), &mut out);
+        push(
+            Family::Local,
+            Box::new(catalogue::local_anomaly(obs, dirs, geo, c)),
+            locate::CELLS,
+            Some(c as f64),
+            &mut out,
+        );
     }
     steps.sort_by(|a, b| b.0.total_cmp(&a.0));
     for &(_, g, at) in steps.iter().take(3) {
@@ -590,7 +598,9 @@ fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
     let excess: Vec<f64> = obs
         .groups
         .iter()
-        .map(|g| g.range().map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum::<f64>() - dof_ratio * g.len() as f64)
+        .map(|g| {
+            g.range().map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum::<f64>() - dof_ratio * g.len() as f64
+        })
         .collect();
     let total = sol.stats.chi2 - sol.stats.dof as f64;
     if total <= 3.0 * (2.0 * sol.stats.dof as f64).sqrt() {

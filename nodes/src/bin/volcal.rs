@@ -56,12 +56,10 @@ enum Command {
     },
     /// Find out why a campaign disagrees with the model: locate the excess residual, name the
     /// physics left out, model it and show the fit improve.
-    #[command(
-        after_help = "Example:
+    #[command(after_help = "Example:
   volcal diagnose campaign.csv --machine launch_configs/machines/demo_cmm.yaml --json diagnosis.json
 
-The catalogue: air_refraction, material_expansion, setup_drift, latency, reversal, periodic_pitch, nonrigid, probe_offset, beam_break, cyclic_nonlinearity. An effect is named only when its nested-model F-test is significant (Bonferroni over all candidates, 0.1 %), its BIC improves, it explains at least 30 % of the excess, it predicts held-out lines, and it does not rest on a single line; what remains is reported as unexplained, with where it is concentrated."
-    )]
+The catalogue: air_refraction, material_expansion, setup_drift, latency, reversal, periodic_pitch, nonrigid, probe_offset, beam_break, cyclic_nonlinearity. An effect is named only when its nested-model F-test is significant (Bonferroni over all candidates, 0.1 %), its BIC improves, it explains at least 30 % of the excess, it predicts held-out lines, and it does not rest on a single line; what remains is reported as unexplained, with where it is concentrated.")]
     Diagnose {
         /// Campaign file (.csv, or a bag recorded by the node set).
         campaign: PathBuf,
