@@ -388,6 +388,45 @@ impl<'a> Fit<'a> {
         &self.state.actual
     }
 
+    /// What each fitted effect adds to the readings, with its parameters set to `params[k]`
+    /// (one value per parameter of effect `k`, in its order): `g_k(reading) . params[k]` for
+    /// every reading, minus its weighted mean over the line, since the line origin absorbs a
+    /// constant. This is the effect's own signature in the residuals: the residuals of a fit
+    /// without the effect are, to first order, those with it plus this signal.
+    ///
+    /// # Panics
+    /// When `params` does not have one entry per effect of the fit with one value per parameter.
+    pub fn effect_signals(&self, params: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let p = &self.prob;
+        assert_eq!(params.len(), p.effects.len(), "one parameter vector per effect");
+        for (e, v) in p.effects.iter().zip(params) {
+            assert_eq!(v.len(), e.param_names().len(), "one value per parameter of {}", e.id());
+        }
+        let mut out: Vec<Vec<f64>> = vec![vec![0.0; p.obs.len()]; p.effects.len()];
+        let mut reg = Vec::new();
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            for i in g.range() {
+                let (direction, _, actual) = predict_reading(p, &self.state, gi, i);
+                let ctx = ObsContext { obs: p.obs, i, group: g, direction, actual };
+                for (k, e) in p.effects.iter().enumerate() {
+                    reg.clear();
+                    reg.resize(params[k].len(), 0.0);
+                    e.regressors(&ctx, &mut reg);
+                    out[k][i] = reg.iter().zip(&params[k]).map(|(a, b)| a * b).sum();
+                }
+            }
+            for signal in out.iter_mut() {
+                let (sw, swv) = g.range().fold((0.0, 0.0), |(sw, swv), i| {
+                    let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+                    (sw + w, swv + w * signal[i])
+                });
+                let mean = swv / sw;
+                g.range().for_each(|i| signal[i] -= mean);
+            }
+        }
+        out
+    }
+
     /// Tests `effect` as an extension of the fitted model.
     pub fn score(&self, effect: &dyn Effect) -> Score {
         self.score_masked(effect, None)

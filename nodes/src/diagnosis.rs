@@ -14,7 +14,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
-use volcal::campaign::prepare;
+use volcal::campaign::{prepare, Observations};
 use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis, Location};
 
 /// Format tag of the JSON file.
@@ -235,8 +235,17 @@ pub fn text_report(d: &Diagnosis, source: &str, n_readings: usize) -> String {
     out
 }
 
-/// `volcal diagnose`: returns the diagnosis file (also written to `json` if given).
-pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Path>) -> Result<(DiagnosisFile, String)> {
+/// A diagnosed campaign: the file written by `--json`, the printed report, and what the
+/// Rerun view shows.
+pub struct Diagnosed {
+    pub file: DiagnosisFile,
+    pub report: String,
+    pub diagnosis: Diagnosis,
+    pub obs: Observations,
+}
+
+/// `volcal diagnose`: diagnoses a campaign (also written to `json` if given).
+pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Path>) -> Result<Diagnosed> {
     let machine = Machine::load(machine_path)?;
     let campaign = load_campaign(campaign_path)?;
     let source = campaign_path.display().to_string();
@@ -255,5 +264,5 @@ pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Pat
     if let Some(p) = json {
         file.write(p)?;
     }
-    Ok((file, text_report(&d, &source, n)))
+    Ok(Diagnosed { file, report: text_report(&d, &source, n), diagnosis: d, obs: prepared.obs })
 }

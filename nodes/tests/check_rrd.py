@@ -1,8 +1,13 @@
 """Independent check of volcal's Rerun recordings, with the official Rerun SDK.
 
-usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv        a recording of `volcal solve --rerun`
-       check_rrd.py --live LIVE.rrd BAG           a recording of the viz node watching the
-                                                  campaign recorded in the rosbag2 BAG
+usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]...
+                                             a recording of `volcal solve --rerun`
+       check_rrd.py --live LIVE.rrd BAG      a recording of the viz node watching the campaign
+                                             recorded in the rosbag2 BAG
+
+`--series ROOT`: one more per-reading series per line is expected under ROOT (e.g. the
+residuals before and after a diagnosis, an effect's signature); `--entity PATH`: one more
+entity path is expected (e.g. the diagnosis report).
 
 Reads the campaign itself, without volcal (the CSV with the standard csv module; the bag's
 /campaign/pairs with rosbags), to know which stations, lines and readings there are, then
@@ -89,14 +94,16 @@ def check_series(rec, res, n, timelines, problems):
         problems.append(f"{res}: timelines {sorted(rec.timelines_at[res])}, expected {sorted(timelines)}")
 
 
-def check_solve(rec, readings):
+def check_solve(rec, readings, series_roots=("fit/residuals",), extra_entities=()):
     problems = []
     expected = {"machine/volume", "machine/axes", "fit/summary", "map/volumetric", "map/volumetric/max", "map/volumetric/scale"}
     for (station, kind, line), n in readings.items():
         expected |= {f"stations/{station}", f"stations/{station}/{kind}/{line}", f"fit/residual_rms/stations/{station}"}
-        res = f"fit/residuals/stations/{station}/{kind}/{line}"
-        expected.add(res)
-        check_series(rec, res, n, {"campaign_time", "position_mm", "beam_index"}, problems)
+        for root in series_roots:
+            res = f"{root}/stations/{station}/{kind}/{line}"
+            expected.add(res)
+            check_series(rec, res, n, {"campaign_time", "position_mm", "beam_index"}, problems)
+    expected |= set(extra_entities)
     for axis in "XYZ":
         for comp in "XYZ":
             for kind, letter in (("translation", comp), ("rotation", {"X": "A", "Y": "B", "Z": "C"}[comp])):
@@ -138,14 +145,24 @@ def main(argv):
     live = argv[:1] == ["--live"]
     if live:
         argv = argv[1:]
-    if len(argv) != 2:
+    if len(argv) < 2 or (live and len(argv) != 2) or len(argv) % 2 != 0:
         sys.exit(__doc__)
-    rrd, campaign = argv
+    rrd, campaign = argv[:2]
+    series_roots, extra_entities = ["fit/residuals"], set()
+    rest = argv[2:]
+    while rest:
+        flag, value, rest = rest[0], rest[1], rest[2:]
+        if flag not in ("--series", "--entity"):
+            sys.exit(__doc__)
+        {"--series": series_roots.append, "--entity": extra_entities.add}[flag](value)
     readings = bag_lines(campaign) if live else campaign_lines(campaign)
     if not readings:
         sys.exit(f"FAIL: no readings in {campaign}")
     rec = Recording(rrd)
-    expected, problems = (check_live if live else check_solve)(rec, readings)
+    if live:
+        expected, problems = check_live(rec, readings)
+    else:
+        expected, problems = check_solve(rec, readings, series_roots, extra_entities)
     problems = rec.problems() + problems
     missing = sorted(expected - rec.paths)
     if missing:

@@ -3,8 +3,6 @@
 //! Python reader (`check_rrd.py`, rerun-sdk) for the entity paths the views rely on.
 //! `--rerun-connect` is checked the same way against a real Rerun gRPC receiver on loopback.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -35,7 +33,22 @@ fn small_campaign(name: &str) -> PathBuf {
 
 /// Runs `check_rrd.py` on a recording of `dir/campaign.csv`.
 fn check_entities(py: &Path, rrd: &Path, dir: &Path) {
-    common::rrd::check_entities(py, &[rrd.as_os_str(), dir.join("campaign.csv").as_os_str()]);
+    check_entities_of(py, rrd, &dir.join("campaign.csv"), &[]);
+}
+
+/// Runs `check_rrd.py` on a recording of `campaign` with extra arguments (`--series ROOT`,
+/// `--entity PATH`).
+fn check_entities_of(py: &Path, rrd: &Path, campaign: &Path, extra: &[String]) {
+    let check = Command::new(py)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check_rrd.py"))
+        .arg(rrd)
+        .arg(campaign)
+        .args(extra)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "check_rrd.py failed:\n{text}{}", String::from_utf8_lossy(&check.stderr));
+    eprintln!("{text}");
 }
 
 #[test]
@@ -48,8 +61,51 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
     assert!(size < 1_000_000, "recording of a 600-reading campaign is {size} bytes");
 
     let Some(py) = volcal_tests::checker_python() else { return };
-    common::rrd::verify(&py, &rrd);
+    rrd_verify(&py, &rrd);
     check_entities(&py, &rrd, &dir);
+}
+
+/// `rerun rrd verify` of the venv's Rerun CLI (the crate's version) accepts `rrd`.
+fn rrd_verify(py: &Path, rrd: &Path) {
+    let rerun = py.parent().unwrap().join("rerun");
+    let verify = Command::new(&rerun).args(["rrd", "verify"]).arg(rrd).output().unwrap();
+    assert!(
+        verify.status.success(),
+        "rerun rrd verify failed:\n{}{}",
+        String::from_utf8_lossy(&verify.stdout),
+        String::from_utf8_lossy(&verify.stderr)
+    );
+}
+
+/// `volcal diagnose --rerun` on a concealed-drift campaign: the solved campaign as `solve`
+/// records it, plus the residuals before and after, the drift's signature and the report.
+#[test]
+fn diagnose_recording_shows_before_signature_and_after() {
+    let dir = volcal_tests::scratch("rerun-diagnose");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let campaign = root.join("bags/concealed/setup_drift.csv");
+    let machine = root.join("launch_configs/machines/diagnosis_cmm.yaml");
+    let out = volcal(
+        &dir,
+        &["diagnose", campaign.to_str().unwrap(), "--machine", machine.to_str().unwrap(), "--rerun", "diagnose.rrd"],
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1. setup_drift"), "the drift is named first");
+    let rrd = dir.join("diagnose.rrd");
+    assert!(rrd.exists(), "no recording written");
+    let Some(py) = volcal_tests::checker_python() else { return };
+    rrd_verify(&py, &rrd);
+    let extra: Vec<String> = [
+        ("--series", "diagnosis/residuals_before"),
+        ("--series", "diagnosis/residuals_after"),
+        ("--series", "diagnosis/effects/setup_drift"),
+        ("--entity", "diagnosis/report"),
+        ("--entity", "diagnosis/residual_rms_before/stations/0"),
+        ("--entity", "diagnosis/residual_rms_after/stations/2"),
+    ]
+    .iter()
+    .flat_map(|(f, v)| [f.to_string(), v.to_string()])
+    .collect();
+    check_entities_of(&py, &rrd, &campaign, &extra);
 }
 
 /// The `rerun` executable shipped in the venv's rerun-sdk (`site-packages/rerun_sdk/rerun_cli`).

@@ -97,6 +97,10 @@ pub struct Diagnosis {
     pub unexplained: Option<String>,
     pub before: Solution,
     pub after: Solution,
+    /// Each found effect's own signature in the readings (same order as `effects`): what it
+    /// adds to every reading with its final parameters, line origins removed (see
+    /// [`crate::estimator::Fit::effect_signals`]), metres.
+    pub signals: Vec<Vec<f64>>,
     /// RMS and largest change of the identified volumetric error map, metres.
     pub map_change_rms_m: f64,
     pub map_change_max_m: f64,
@@ -195,6 +199,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
     let mut selected: Vec<(Family, Box<dyn Effect>)> = Vec::new();
     let mut found: Vec<FoundEffect> = Vec::new();
     let mut current = before.clone();
+    let mut signals: Vec<Vec<f64>> = Vec::new();
     let mut rounds = Vec::new();
     let mut local: Option<String> = None;
     loop {
@@ -324,7 +329,8 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         drop(f);
         selected.push((best.cand.family, best.cand.effect));
         hypers.push(best.cand.hyper);
-        let sol = refit(layout, &mut work, opts, &selected, &geo, &mut probe_shift)?;
+        let (sol, sig) = refit(layout, &mut work, opts, &selected, &geo, &mut probe_shift)?;
+        signals = sig;
         let (id, coeffs) = sol.effects.last().cloned().expect("the new effect is fitted");
         found.push(FoundEffect {
             id,
@@ -422,6 +428,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         map_change_max_m,
         statements,
         rounds,
+        signals,
     })
 }
 
@@ -821,19 +828,20 @@ fn refit(
     selected: &[(Family, Box<dyn Effect>)],
     geo: &Geometry,
     shift: &mut [Vector3<f64>],
-) -> Result<Solution, SolveError> {
+) -> Result<(Solution, Vec<Vec<f64>>), SolveError> {
     let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
-    let mut sol = fit(layout, work, &opts.solve, &refs)?.into_solution();
-    let Some(slot) = selected.iter().position(|(f, _)| *f == Family::Probe) else { return Ok(sol) };
     let probe_param = |name: &str| -> Option<(usize, usize)> {
         let rest = name.strip_prefix("probe")?;
         let (k, c) = rest.split_once('_')?;
         Some((k.parse().ok()?, ["dx_m", "dy_m", "dz_m"].iter().position(|n| *n == c)?))
     };
+    let slot = selected.iter().position(|(f, _)| *f == Family::Probe);
+    let mut f = fit(layout, work, &opts.solve, &refs)?;
     for _ in 0..8 {
+        let Some(slot) = slot else { break };
         let mut step = vec![Vector3::zeros(); shift.len()];
         let mut worst = 0.0f64;
-        for (name, value, sigma) in &sol.effects[slot].1 {
+        for (name, value, sigma) in &f.solution().effects[slot].1 {
             if let Some((k, c)) = probe_param(name) {
                 step[k][c] = *value;
                 worst = worst.max(value.abs() / sigma.max(1e-300));
@@ -842,20 +850,30 @@ fn refit(
         if worst < 0.01 {
             break;
         }
+        drop(f);
         for (i, p) in work.p.iter_mut().enumerate() {
             *p += step[geo.probe_of[i]];
         }
         for (s, d) in shift.iter_mut().zip(&step) {
             *s += d;
         }
-        sol = fit(layout, work, &opts.solve, &refs)?.into_solution();
+        f = fit(layout, work, &opts.solve, &refs)?;
     }
-    for (name, value, _) in &mut sol.effects[slot].1 {
-        if let Some((k, c)) = probe_param(name) {
-            *value += shift[k][c];
+    let mut effects = f.solution().effects.clone();
+    if let Some(slot) = slot {
+        for (name, value, _) in &mut effects[slot].1 {
+            if let Some((k, c)) = probe_param(name) {
+                *value += shift[k][c];
+            }
         }
     }
-    Ok(sol)
+    // The probe offset's signal is that of its whole move (to first order), not of the last
+    // correction only.
+    let params: Vec<Vec<f64>> = effects.iter().map(|(_, c)| c.iter().map(|v| v.1).collect()).collect();
+    let signals = f.effect_signals(&params);
+    let mut sol = f.into_solution();
+    sol.effects = effects;
+    Ok((sol, signals))
 }
 
 /// Whether a fold's score determines an effect's parameters nearly as well as expected from

@@ -58,6 +58,7 @@ enum Command {
     /// physics left out, model it and show the fit improve.
     #[command(after_help = "Example:
   volcal diagnose campaign.csv --machine launch_configs/machines/demo_cmm.yaml --json diagnosis.json
+  volcal diagnose bags/concealed/setup_drift.csv --machine launch_configs/machines/diagnosis_cmm.yaml --rerun diagnosis.rrd
 
 The catalogue: air_refraction, material_expansion, setup_drift, latency, reversal, periodic_pitch, nonrigid, probe_offset, beam_break, cyclic_nonlinearity. An effect is named only when its nested-model F-test is significant (Bonferroni over all candidates, 0.1 %), its BIC improves, it explains at least 30 % of the excess, it predicts held-out lines, and it does not rest on a single line; what remains is reported as unexplained, with where it is concentrated.")]
     Diagnose {
@@ -68,6 +69,8 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Write the diagnosis (JSON).
         #[arg(long)]
         json: Option<PathBuf>,
+        #[command(flatten)]
+        rerun: volcal_nodes::viz::RerunArgs,
     },
     /// Identify the error model from a campaign (CSV or MCAP bag).
     #[command(
@@ -275,9 +278,12 @@ fn run() -> anyhow::Result<ExitCode> {
             let opts = commands::SimulateOptions { inject, conceal, air_rate_k_per_h: air_rate, record_air };
             commands::simulate_cmd(&machine, plan.as_deref(), seed, &out, truth.as_deref(), &opts)?
         }
-        Command::Diagnose { campaign, machine, json } => {
-            let (_, report) = volcal_nodes::diagnosis::diagnose_cmd(&campaign, &machine, json.as_deref())?;
-            print!("{report}");
+        Command::Diagnose { campaign, machine, json, rerun } => {
+            rerun.validate()?;
+            let d = volcal_nodes::diagnosis::diagnose_cmd(&campaign, &machine, json.as_deref())?;
+            print!("{}", d.report);
+            let name = format!("volcal diagnose {}", campaign.display());
+            volcal_nodes::viz::diagnosis::record(&rerun, &name, &d.obs, &d.diagnosis, &d.report)?;
             if let Some(j) = json {
                 eprintln!("wrote the diagnosis to {}", j.display());
             }

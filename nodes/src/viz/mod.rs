@@ -17,6 +17,8 @@
 //! - [`error_functions`]: the 18 functions and squareness over axis position with bands.
 //! - [`volumetric`]: the volumetric error map as scaled, coloured arrows, the maximum marked.
 //! - [`solve`]: everything `volcal solve --rerun` logs, and its summary text.
+//! - [`diagnosis`]: what `volcal diagnose --rerun` adds: residuals before and after, each
+//!   named effect's signature, the report.
 //! - [`live`]: the live view of a running campaign (the `viz` node), fed with plain data.
 //! - [`blueprint`]: default layouts, so that the first screen is useful; [`layout`]: the
 //!   blueprint builder they use.
@@ -24,6 +26,7 @@
 
 pub mod blueprint;
 pub mod colors;
+pub mod diagnosis;
 pub mod error_functions;
 pub mod geometry;
 pub mod layout;

@@ -17,6 +17,11 @@
 //! map/volumetric/max                  the largest error, marked and labelled
 //! map/volumetric/scale                scale bar arrow with its length in um in the label
 //! live/...                            state of a running campaign (viz node)
+//! diagnosis/residuals_before/...      residuals of the rigid-body fit (volcal diagnose)
+//! diagnosis/effects/<id>/...          a named effect's own signature in the readings
+//! diagnosis/residuals_after/...       residuals of the refit with the named effects
+//! diagnosis/residual_rms_{before,after}/stations/<s>   RMS per line before and after
+//! diagnosis/report                    the diagnosis report
 //! ```
 
 use volcal::campaign::{LineGroup, ObsKind};
@@ -47,6 +52,23 @@ pub const MAP_VOLUMETRIC: &str = "map/volumetric";
 pub const MAP_MAX: &str = "map/volumetric/max";
 pub const MAP_SCALE: &str = "map/volumetric/scale";
 pub const LIVE: &str = "live";
+
+/// Root of everything the diagnosis adds.
+pub const DIAGNOSIS: &str = "diagnosis";
+/// Residuals of the rigid-body fit, before any effect is modelled.
+pub const RESIDUALS_BEFORE: &str = "diagnosis/residuals_before";
+/// Residuals of the refit with the named effects.
+pub const RESIDUALS_AFTER: &str = "diagnosis/residuals_after";
+/// Per-line RMS before and after.
+pub const RMS_BEFORE: &str = "diagnosis/residual_rms_before";
+pub const RMS_AFTER: &str = "diagnosis/residual_rms_after";
+/// The report text.
+pub const DIAGNOSIS_REPORT: &str = "diagnosis/report";
+
+/// `diagnosis/effects/<id>`: the signature of a named effect.
+pub fn effect_signature(id: &str) -> String {
+    format!("{DIAGNOSIS}/effects/{id}")
+}
 
 /// `stations/<s>`.
 pub fn station(s: u32) -> String {
