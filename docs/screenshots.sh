@@ -3,15 +3,19 @@
 # rerun-sdk pinned in .ci/requirements.txt, same version as the `rerun` crate) headless under
 # Xvfb with Mesa's software Vulkan, at 1920x1080:
 #   docs/solve.png  first screen of `volcal solve --rerun` on the demo campaign (seed 7)
+#   docs/live.png   first screen of the viz node watching the short simulated campaign over DDS
+#                   (launch_configs/sim_campaign_short.yaml on a ROS domain of its own, this host
+#                   only), its recording stopped during the third station
 #
-# usage: docs/screenshots.sh
+# usage: docs/screenshots.sh [solve|live]   (default: both)
 # needs: xvfb-run and a Vulkan driver (apt-get install xvfb mesa-vulkan-drivers libvulkan1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size=1920x1080
 [ -x .venv/bin/rerun ] || { python3 -m venv .venv && .venv/bin/pip install -q -r .ci/requirements.txt; }
-cargo build -q --bin volcal
-volcal() { cargo run -q --bin volcal -- "$@"; }
+cargo build -q -p volcal_nodes --bins
+bin=${CARGO_TARGET_DIR:-target}/debug
+volcal() { "$bin/volcal" "$@"; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
@@ -30,7 +34,38 @@ PY
   echo "wrote $out"
 }
 
+which=${1:-all}
 machine=launch_configs/machines/demo_cmm.yaml
+if [ "$which" = all ] || [ "$which" = solve ]; then
 volcal simulate --machine "$machine" --seed 7 --out "$work/campaign.csv"
 volcal solve "$work/campaign.csv" --machine "$machine" --out "$work/model.json" --rerun "$work/solve.rrd" >/dev/null || [ $? -eq 3 ]
 render "$work/solve.rrd" docs/solve.png
+fi
+[ "$which" = all ] || [ "$which" = live ] || exit 0
+
+# The live view: the viz node (saving its view) and the campaign, on a ROS domain leased as the
+# tests lease theirs (a lock file per id), so that nothing else on this host joins.
+exec 9>/dev/null
+for id in $(seq 101 232); do
+  exec 9>"${TMPDIR:-/tmp}/volcal-ros-domain-$id.lock"
+  if flock -n 9; then domain=$id; break; fi
+done
+[ -n "${domain:-}" ] || { echo "no free ROS domain id in 101..232" >&2; exit 1; }
+"$bin/volcal" launch launch_configs/viz.yaml --domain "$domain" rerun:="$work/live.rrd" >"$work/viz.log" 2>&1 &
+viz=$!
+for _ in $(seq 600); do grep -q "showing the campaign live" "$work/viz.log" && break; sleep 0.1; done
+sleep 2
+# 960 points with a 20 ms dwell each (about 40 s): the view is saved a few seconds after the
+# sequencer moved to the third station (about 100 of its 320 points).
+"$bin/volcal" launch launch_configs/sim_campaign_short.yaml --bag "$work/bag" --domain "$domain" \
+  dwell_s:=0.02 station_setup_s:=0.5 >"$work/campaign.log" 2>&1 &
+campaign=$!
+for _ in $(seq 1200); do grep -q "station 2: waiting" "$work/campaign.log" && break; sleep 0.1; done
+sleep 4.5
+kill -INT "$viz"
+wait "$viz" || { cat "$work/viz.log" >&2; exit 1; }
+grep -q "station 2: waiting" "$work/campaign.log" || { cat "$work/campaign.log" >&2; exit 1; }
+kill -INT "$campaign"   # the rest of the campaign is not needed
+wait "$campaign" || true
+grep "viz:" "$work/viz.log" || true
+render "$work/live.rrd" docs/live.png

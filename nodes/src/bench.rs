@@ -8,6 +8,13 @@
 //! synchronised pair: the benchmark counts the pairs in the bag (loss = readings - pairs) and
 //! reports the recorder's CPU share (from `/proc`, user + system time over wall time).
 //!
+//! With `viz`, the viz node (`volcal_viz`, saving its live view to an `.rrd` file) watches the
+//! same acquisition, as a user watching a 1 kHz campaign live would: it subscribes to the machine
+//! positions and to the recorder's pairs. The benchmark then also reports the viz node's CPU
+//! share and its exit report (what it received, its lag in the first and the last 10 s), so
+//! that the recorder's figures with and without the viz node can be compared and the viz node
+//! seen to keep up.
+//!
 //! The replay benchmark reads a bag and decodes every message into its type, and reports
 //! messages per second; then it turns the pairs into a campaign as `volcal solve` does.
 
@@ -35,6 +42,19 @@ pub struct RecorderBench {
     pub bag: Option<PathBuf>,
     /// The recorder also publishes every pair on `/campaign/pairs`.
     pub publish_pairs: bool,
+    /// Run the viz node too, watching the acquisition live (saving to an `.rrd` file).
+    pub viz: bool,
+}
+
+/// What the viz node did during the recorder benchmark.
+#[derive(Clone, Debug)]
+pub struct VizBenchReport {
+    /// CPU seconds of the viz node over the benchmark's wall time.
+    pub cpu_s: f64,
+    /// Its own exit report.
+    pub report: crate::node::viz::VizReport,
+    pub rrd: PathBuf,
+    pub rrd_bytes: u64,
 }
 
 /// What the recorder benchmark measured.
@@ -50,6 +70,7 @@ pub struct RecorderReport {
     pub bag_bytes: u64,
     /// The publisher fell behind its schedule by this much at worst, seconds.
     pub max_lag_s: f64,
+    pub viz: Option<VizBenchReport>,
 }
 
 impl RecorderReport {
@@ -58,7 +79,7 @@ impl RecorderReport {
     }
 
     pub fn describe(&self, b: &RecorderBench) -> String {
-        format!(
+        let mut s = format!(
             "recorder benchmark: {:.0} Hz for {:.0} s, {}\n  sent {} readings and {} machine samples in {} messages (publisher at most {:.1} ms behind schedule)\n  recorded {} synchronised pairs: {} lost\n  recorder CPU {:.1} % of one core ({:.2} s over {:.1} s)\n  bag {} ({:.1} MB)",
             b.rate_hz,
             b.duration_s,
@@ -74,7 +95,32 @@ impl RecorderReport {
             self.wall_s,
             self.bag.display(),
             self.bag_bytes as f64 / 1e6
-        )
+        );
+        if let Some(v) = &self.viz {
+            let r = &v.report;
+            s += &format!(
+                "\n  viz node: received {} pairs and {} machine samples, {} display flushes; CPU {:.1} % of one core ({:.2} s)\n  viz lag (processing time minus stamp), mean of the first / last 10 s, max: machine samples {:.1} / {:.1} ms, max {:.1} ms; pairs {:.1} / {:.1} ms, max {:.1} ms\n  viz recording {} ({:.1} MB)",
+                r.pairs,
+                r.machine_samples,
+                r.flushes,
+                100.0 * v.cpu_s / self.wall_s,
+                v.cpu_s,
+                r.machine_lag_first_ms,
+                r.machine_lag_last_ms,
+                r.machine_lag_max_ms,
+                r.pair_lag_first_ms,
+                r.pair_lag_last_ms,
+                r.pair_lag_max_ms,
+                v.rrd.display(),
+                v.rrd_bytes as f64 / 1e6
+            );
+        }
+        s
+    }
+
+    /// Whether every reading became a pair and, with the viz node, it received them all.
+    pub fn complete(&self) -> bool {
+        self.loss() == 0 && self.viz.as_ref().is_none_or(|v| v.report.pairs == self.pairs)
     }
 }
 
@@ -120,6 +166,18 @@ pub fn recorder(b: &RecorderBench) -> Result<RecorderReport> {
         .stderr(Stdio::inherit())
         .spawn()
         .with_context(|| format!("cannot start {}", exe.display()))?;
+    let viz_files = (bag.with_extension("viz.rrd"), bag.with_extension("viz.json"));
+    let mut viz = if b.viz {
+        match start_viz(lease.id, &viz_files.0, &viz_files.1) {
+            Ok(c) => Some(c),
+            Err(e) => {
+                let _ = stop(&mut child);
+                return Err(e);
+            }
+        }
+    } else {
+        None
+    };
     let result = (|| -> Result<RecorderReport> {
         let mut node = RosNode::with_config(
             NodeArgs::default(),
@@ -154,6 +212,13 @@ pub fn recorder(b: &RecorderBench) -> Result<RecorderReport> {
             }
             node.wait(Duration::from_millis(50));
         }
+        // The viz node is the only subscriber of the pairs.
+        while viz.is_some() && node.ros_node().subscription_count(topics::PAIRS) == 0 {
+            if t.elapsed() > Duration::from_secs(30) {
+                bail!("the viz node did not subscribe to {} within 30 s", topics::PAIRS);
+            }
+            node.wait(Duration::from_millis(50));
+        }
         std::thread::sleep(Duration::from_millis(1000));
 
         let period_ns = (1e9 / b.rate_hz).round() as i64;
@@ -172,6 +237,7 @@ pub fn recorder(b: &RecorderBench) -> Result<RecorderReport> {
         let mut max_lag = 0i64;
         let started = Instant::now();
         let cpu0 = process_cpu_seconds(child.id())?;
+        let viz_cpu0 = viz.as_ref().map(|v| process_cpu_seconds(v.id())).transpose()?;
         let mut j = -1i64;
         let mut i = 0i64;
         while i < n {
@@ -298,6 +364,10 @@ pub fn recorder(b: &RecorderBench) -> Result<RecorderReport> {
         std::thread::sleep(Duration::from_secs(1));
         let wall = started.elapsed().as_secs_f64();
         let cpu = process_cpu_seconds(child.id())? - cpu0;
+        let viz_cpu = match (&viz, viz_cpu0) {
+            (Some(v), Some(c0)) => Some(process_cpu_seconds(v.id())? - c0),
+            _ => None,
+        };
         Ok(RecorderReport {
             readings: n as u64,
             machine_samples,
@@ -308,21 +378,68 @@ pub fn recorder(b: &RecorderBench) -> Result<RecorderReport> {
             bag: bag.clone(),
             bag_bytes: 0,
             max_lag_s: max_lag as f64 * 1e-9,
+            viz: viz_cpu.map(|cpu_s| VizBenchReport {
+                cpu_s,
+                report: Default::default(),
+                rrd: viz_files.0.clone(),
+                rrd_bytes: 0,
+            }),
         })
     })();
-    // SAFETY: signalling the child we started.
-    unsafe {
-        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
-    }
-    let status = child.wait()?;
+    // The recorder first (it publishes its last pairs as it stops), then the viz node.
+    let status = stop(&mut child)?;
+    let viz_status = viz.as_mut().map(|v| {
+        std::thread::sleep(Duration::from_millis(500));
+        stop(v)
+    });
     let mut report = result?;
     if !status.success() {
         bail!("the recorder failed ({status})");
+    }
+    if let Some(st) = viz_status.transpose()? {
+        if !st.success() {
+            bail!("the viz node failed ({st})");
+        }
+        let v = report.viz.as_mut().expect("viz report");
+        let text = std::fs::read_to_string(&viz_files.1)
+            .with_context(|| format!("the viz node wrote no report {}", viz_files.1.display()))?;
+        v.report = serde_json::from_str(&text).with_context(|| format!("{}", viz_files.1.display()))?;
+        v.rrd_bytes = std::fs::metadata(&v.rrd).map(|m| m.len()).unwrap_or(0);
     }
     let pairs = Bag::open(&bag)?.count()?.per_topic.get(topics::PAIRS).map_or(0, |c| c.count);
     report.pairs = pairs;
     report.bag_bytes = std::fs::read_dir(&bag)?.filter_map(|e| e.ok()?.metadata().ok()).map(|m| m.len()).sum();
     Ok(report)
+}
+
+/// Starts the viz node on `domain`, saving to `rrd` and reporting to `report`.
+fn start_viz(domain: u16, rrd: &Path, report: &Path) -> Result<std::process::Child> {
+    let exe = node_dir()?.join("volcal_viz");
+    let _ = std::fs::remove_file(rrd);
+    Command::new(&exe)
+        .args([
+            "--ros-args",
+            "-p",
+            &format!("rerun:={}", rrd.display()),
+            "-p",
+            &format!("report:={}", report.display()),
+        ])
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .env("ROS_LOCALHOST_ONLY", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::inherit())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .with_context(|| format!("cannot start {}", exe.display()))
+}
+
+/// SIGINT to a node this benchmark started, and waits for it.
+fn stop(child: &mut std::process::Child) -> Result<std::process::ExitStatus> {
+    // SAFETY: signalling the child we started.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    Ok(child.wait()?)
 }
 
 fn segment(id: u64, ty: u8, line: i64, stamp: i64) -> Trigger {

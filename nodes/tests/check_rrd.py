@@ -1,14 +1,18 @@
-"""Independent check of a recording from `volcal solve --rerun`, with the official Rerun SDK.
+"""Independent check of volcal's Rerun recordings, with the official Rerun SDK.
 
 usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]...
+                                             a recording of `volcal solve --rerun`
+       check_rrd.py --live LIVE.rrd BAG      a recording of the viz node watching the campaign
+                                             recorded in the rosbag2 BAG
 
 `--series ROOT`: one more per-reading series per line is expected under ROOT (e.g. the
 residuals before and after a diagnosis, an effect's signature); `--entity PATH`: one more
 entity path is expected (e.g. the diagnosis report).
 
-Reads the campaign CSV itself (the standard csv module) to know which stations, beams and
-readings there are, then checks that the recording holds the entity paths the views rely on,
-one residual per reading on the expected timelines, and a default blueprint.
+Reads the campaign itself, without volcal (the CSV with the standard csv module; the bag's
+/campaign/pairs with rosbags), to know which stations, lines and readings there are, then
+checks that the recording holds the entity paths the views rely on, one residual per reading
+on the expected timelines, and a default blueprint.
 """
 
 import csv
@@ -18,69 +22,160 @@ from collections import Counter
 import rerun as rr
 from rerun.experimental import RrdReader
 
-rrd, campaign = sys.argv[1], sys.argv[2]
-series_roots, extra_entities = ["fit/residuals"], set()
-rest = sys.argv[3:]
-while rest:
-    flag, value, rest = rest[0], rest[1], rest[2:]
-    {"--series": series_roots.append, "--entity": extra_entities.add}[flag](value)
 
-readings = Counter()
-with open(campaign, newline="") as f:
-    rows = csv.DictReader(line for line in f if not line.startswith("#"))
-    for row in rows:
-        kind = {"beam": "beams", "range": "paths"}[row["kind"]]
-        readings[(row["station"], kind, row["beam"])] += 1
+def campaign_lines(campaign):
+    """Readings per (station, "beams"|"paths", line) of a campaign CSV."""
+    readings = Counter()
+    with open(campaign, newline="") as f:
+        rows = csv.DictReader(line for line in f if not line.startswith("#"))
+        for row in rows:
+            kind = {"beam": "beams", "range": "paths"}[row["kind"]]
+            readings[(row["station"], kind, row["beam"])] += 1
+    return readings
 
-reader = RrdReader(rrd)
-recordings = reader.recordings()
-blueprints = reader.blueprints()
-problems = []
-if len(recordings) != 1:
-    problems.append(f"expected one recording, found {len(recordings)}")
-if not blueprints:
-    problems.append("no blueprint (default layout) in the recording")
 
-rows_at = Counter()
-timelines_at = {}
-static_at = set()
-for chunk in reader.stream().to_chunks():
-    path = chunk.entity_path.strip("/")
-    rows_at[path] += chunk.num_rows
-    timelines_at.setdefault(path, set()).update(chunk.timeline_names)
-    if chunk.is_static:
-        static_at.add(path)
-paths = set(rows_at)
+def bag_lines(bag):
+    """Readings per (station, "beams"|"paths", line) of a bag's /campaign/pairs (rosbags)."""
+    from pathlib import Path
 
-expected = {"machine/volume", "machine/axes", "fit/summary", "map/volumetric", "map/volumetric/max", "map/volumetric/scale"}
-for (station, kind, line), n in readings.items():
-    expected |= {f"stations/{station}", f"stations/{station}/{kind}/{line}", f"fit/residual_rms/stations/{station}"}
-    for root in series_roots:
-        res = f"{root}/stations/{station}/{kind}/{line}"
-        expected.add(res)
-        # One scalar row per reading, plus the static series style row.
-        if res in rows_at and rows_at[res] - (1 if res in static_at else 0) != n:
-            problems.append(f"{res}: {rows_at[res]} rows for {n} readings")
-        want = {"campaign_time", "position_mm", "beam_index"}
-        if res in timelines_at and not want <= timelines_at[res]:
-            problems.append(f"{res}: timelines {sorted(timelines_at[res])}, expected {sorted(want)}")
-expected |= extra_entities
-for axis in "XYZ":
-    for comp in "XYZ":
-        for kind, letter in (("translation", comp), ("rotation", {"X": "A", "Y": "B", "Z": "C"}[comp])):
-            expected.add(f"functions/{axis}/{kind}/E{letter}{axis}")
-for sq, axis in (("EC0Y", "Y"), ("EB0Z", "Z"), ("EA0Z", "Z")):
-    expected.add(f"functions/{axis}/rotation/{sq}")
+    from rosbags.highlevel import AnyReader
 
-missing = sorted(expected - paths)
-if missing:
-    problems.append(f"{len(missing)} expected entity paths missing, e.g. {missing[:8]}")
+    readings = Counter()
+    with AnyReader([Path(bag)]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/campaign/pairs"]
+        for conn, _, raw in reader.messages(connections=conns):
+            m = reader.deserialize(raw, conn.msgtype)
+            kind = "beams" if m.kind == 0 else "paths"
+            readings[(str(m.station), kind, str(m.line))] += 1
+    return readings
 
-print(
-    f"rerun-sdk {rr.__version__}: {len(paths)} entity paths, {len(expected)} expected, "
-    f"{sum(readings.values())} readings on {len(readings)} lines, {len(blueprints)} blueprint(s)"
-)
-if problems:
-    print("\n".join("FAIL: " + p for p in problems))
-    sys.exit(1)
-print("OK")
+
+class Recording:
+    """Rows, timelines and static-ness per entity path of one .rrd file."""
+
+    def __init__(self, rrd):
+        reader = RrdReader(rrd)
+        self.recordings = reader.recordings()
+        self.blueprints = reader.blueprints()
+        self.rows_at = Counter()
+        self.timelines_at = {}
+        self.static_at = set()
+        for chunk in reader.stream().to_chunks():
+            path = chunk.entity_path.strip("/")
+            self.rows_at[path] += chunk.num_rows
+            self.timelines_at.setdefault(path, set()).update(chunk.timeline_names)
+            if chunk.is_static:
+                self.static_at.add(path)
+        self.paths = set(self.rows_at)
+
+    def problems(self):
+        out = []
+        if len(self.recordings) != 1:
+            out.append(f"expected one recording, found {len(self.recordings)}")
+        if not self.blueprints:
+            out.append("no blueprint (default layout) in the recording")
+        return out
+
+    def series_rows(self, path):
+        """Rows of a series and of its segments (`path/segment_<k>`), without the static style row."""
+        total = 0
+        for p in self.paths:
+            if p == path or p.startswith(path + "/segment_"):
+                total += self.rows_at[p] - (1 if p in self.static_at else 0)
+        return total
+
+
+def check_series(rec, res, n, timelines, problems):
+    """One scalar row per reading on `res` (and its segments), on the given timelines."""
+    rows = rec.series_rows(res)
+    if res in rec.rows_at and rows != n:
+        problems.append(f"{res}: {rows} rows for {n} readings")
+    if res in rec.timelines_at and not timelines <= rec.timelines_at[res]:
+        problems.append(f"{res}: timelines {sorted(rec.timelines_at[res])}, expected {sorted(timelines)}")
+
+
+def check_solve(rec, readings, series_roots=("fit/residuals",), extra_entities=()):
+    problems = []
+    expected = {"machine/volume", "machine/axes", "fit/summary", "map/volumetric", "map/volumetric/max", "map/volumetric/scale"}
+    for (station, kind, line), n in readings.items():
+        expected |= {f"stations/{station}", f"stations/{station}/{kind}/{line}", f"fit/residual_rms/stations/{station}"}
+        for root in series_roots:
+            res = f"{root}/stations/{station}/{kind}/{line}"
+            expected.add(res)
+            check_series(rec, res, n, {"campaign_time", "position_mm", "beam_index"}, problems)
+    expected |= set(extra_entities)
+    for axis in "XYZ":
+        for comp in "XYZ":
+            for kind, letter in (("translation", comp), ("rotation", {"X": "A", "Y": "B", "Z": "C"}[comp])):
+                expected.add(f"functions/{axis}/{kind}/E{letter}{axis}")
+    for sq, axis in (("EC0Y", "Y"), ("EB0Z", "Z"), ("EA0Z", "Z")):
+        expected.add(f"functions/{axis}/rotation/{sq}")
+    return expected, problems
+
+
+def check_live(rec, readings):
+    problems = []
+    expected = {
+        "machine/volume",
+        "machine/axes",
+        "live/status",
+        "live/current_point",
+        "live/deflector",
+        "live/running_rms",
+    }
+    for (station, kind, line), n in readings.items():
+        expected |= {
+            f"stations/{station}",
+            f"stations/{station}/{kind}/{line}",
+            f"stations/{station}/{kind}/{line}/indicated",
+        }
+        if kind == "beams":
+            # Commanded by the deflector; the live line fits are those of beams.
+            expected |= {f"stations/{station}/beams/{line}/commanded", f"live/residual_rms/stations/{station}"}
+            res = f"live/residuals/stations/{station}/beams/{line}"
+            expected.add(res)
+            check_series(rec, res, n, {"campaign_time", "beam_index"}, problems)
+    for p in ("live/current_point", "live/deflector", "live/running_rms"):
+        if p in rec.timelines_at and "campaign_time" not in rec.timelines_at[p]:
+            problems.append(f"{p}: not on the campaign_time timeline")
+    return expected, problems
+
+
+def main(argv):
+    live = argv[:1] == ["--live"]
+    if live:
+        argv = argv[1:]
+    if len(argv) < 2 or (live and len(argv) != 2) or len(argv) % 2 != 0:
+        sys.exit(__doc__)
+    rrd, campaign = argv[:2]
+    series_roots, extra_entities = ["fit/residuals"], set()
+    rest = argv[2:]
+    while rest:
+        flag, value, rest = rest[0], rest[1], rest[2:]
+        if flag not in ("--series", "--entity"):
+            sys.exit(__doc__)
+        {"--series": series_roots.append, "--entity": extra_entities.add}[flag](value)
+    readings = bag_lines(campaign) if live else campaign_lines(campaign)
+    if not readings:
+        sys.exit(f"FAIL: no readings in {campaign}")
+    rec = Recording(rrd)
+    if live:
+        expected, problems = check_live(rec, readings)
+    else:
+        expected, problems = check_solve(rec, readings, series_roots, extra_entities)
+    problems = rec.problems() + problems
+    missing = sorted(expected - rec.paths)
+    if missing:
+        problems.append(f"{len(missing)} expected entity paths missing, e.g. {missing[:8]}")
+    print(
+        f"rerun-sdk {rr.__version__}: {len(rec.paths)} entity paths, {len(expected)} expected, "
+        f"{sum(readings.values())} readings on {len(readings)} lines, {len(rec.blueprints)} blueprint(s)"
+    )
+    if problems:
+        print("\n".join("FAIL: " + p for p in problems))
+        sys.exit(1)
+    print("OK")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -3,6 +3,8 @@
 //! Python reader (`check_rrd.py`, rerun-sdk) for the entity paths the views rely on.
 //! `--rerun-connect` is checked the same way against a real Rerun gRPC receiver on loopback.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -39,16 +41,9 @@ fn check_entities(py: &Path, rrd: &Path, dir: &Path) {
 /// Runs `check_rrd.py` on a recording of `campaign` with extra arguments (`--series ROOT`,
 /// `--entity PATH`).
 fn check_entities_of(py: &Path, rrd: &Path, campaign: &Path, extra: &[String]) {
-    let check = Command::new(py)
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/check_rrd.py"))
-        .arg(rrd)
-        .arg(campaign)
-        .args(extra)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&check.stdout);
-    assert!(check.status.success(), "check_rrd.py failed:\n{text}{}", String::from_utf8_lossy(&check.stderr));
-    eprintln!("{text}");
+    let mut args = vec![rrd.as_os_str(), campaign.as_os_str()];
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(a)));
+    common::rrd::check_entities(py, &args);
 }
 
 #[test]
@@ -67,14 +62,7 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
 
 /// `rerun rrd verify` of the venv's Rerun CLI (the crate's version) accepts `rrd`.
 fn rrd_verify(py: &Path, rrd: &Path) {
-    let rerun = py.parent().unwrap().join("rerun");
-    let verify = Command::new(&rerun).args(["rrd", "verify"]).arg(rrd).output().unwrap();
-    assert!(
-        verify.status.success(),
-        "rerun rrd verify failed:\n{}{}",
-        String::from_utf8_lossy(&verify.stdout),
-        String::from_utf8_lossy(&verify.stderr)
-    );
+    common::rrd::verify(py, rrd);
 }
 
 /// `volcal diagnose --rerun` on a concealed-drift campaign: the solved campaign as `solve`

@@ -161,7 +161,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     },
     /// Throughput benchmarks of the recording chain (figures in README).
     #[command(
-        after_help = "Examples:\n  volcal bench recorder --rate 1000 --duration 60\n  volcal bench recorder --rate 10000 --duration 60 --batch 100\n  volcal bench replay /tmp/volcal-bench-recorder-1234"
+        after_help = "Examples:\n  volcal bench recorder --rate 1000 --duration 60\n  volcal bench recorder --rate 1000 --duration 60 --viz\n  volcal bench recorder --rate 10000 --duration 60 --batch 100\n  volcal bench replay /tmp/volcal-bench-recorder-1234"
     )]
     Bench {
         #[command(subcommand)]
@@ -257,6 +257,9 @@ enum BenchCommand {
         /// Do not publish the pairs on /campaign/pairs (bag only).
         #[arg(long)]
         no_publish_pairs: bool,
+        /// Also run the viz node watching the acquisition live (saving BAG.viz.rrd): its CPU share and lag.
+        #[arg(long, conflicts_with = "no_publish_pairs")]
+        viz: bool,
     },
     /// Read and decode every message of a bag; messages per second.
     Replay { bag: PathBuf },
@@ -315,17 +318,18 @@ fn run() -> anyhow::Result<ExitCode> {
         Command::Launch { file, bag, domain, args } => {
             return volcal_nodes::launch_cmd::launch_cmd(&file, bag.as_deref(), domain, &args);
         }
-        Command::Bench { command: BenchCommand::Recorder { rate, duration, batch, bag, no_publish_pairs } } => {
+        Command::Bench { command: BenchCommand::Recorder { rate, duration, batch, bag, no_publish_pairs, viz } } => {
             let b = volcal_nodes::bench::RecorderBench {
                 rate_hz: rate,
                 duration_s: duration,
                 batch,
                 bag,
                 publish_pairs: !no_publish_pairs,
+                viz,
             };
             let r = volcal_nodes::bench::recorder(&b)?;
             println!("{}", r.describe(&b));
-            if r.loss() != 0 {
+            if !r.complete() {
                 return Ok(ExitCode::from(2));
             }
         }

@@ -64,7 +64,7 @@ pub fn command_line(args: Vec<String>) -> Result<Vec<String>> {
 }
 
 /// What the node received and how far behind it ran (the `report` file).
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct VizReport {
     pub pairs: u64,
     pub machine_samples: u64,

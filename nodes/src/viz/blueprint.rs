@@ -123,7 +123,7 @@ pub fn live(travel: Option<&Travel>) -> Layout {
         View::text_document("Campaign status", [format!("+ /{LIVE_STATUS}")]).into(),
         rms_view("Residual RMS per line (µm), line fits", LIVE_RESIDUAL_RMS).into(),
     ])
-    .shares([1.2, 1.0]);
+    .shares([0.8, 1.0]);
     let right = Container::vertical([
         last_seconds(series_view("Residuals from the running line fits (µm), last 30 s", LIVE_RESIDUALS), 30.0).into(),
         View::time_series("Running residual RMS of the campaign (µm)", [format!("+ /{LIVE_RUNNING_RMS}")])

@@ -40,6 +40,16 @@ pub fn station(s: u32) -> Rgba {
     P[s as usize % P.len()]
 }
 
+/// The deflector's beam in the live view: yellow when settled, red while moving (neither is a
+/// station's colour for the usual three stations).
+pub fn deflector(settled: bool) -> Rgba {
+    if settled {
+        [255, 230, 60, 255]
+    } else {
+        [255, 80, 80, 255]
+    }
+}
+
 /// The same colour, lighter and translucent (uncertainty bands).
 pub fn faded(c: Rgba) -> Rgba {
     [c[0] / 2 + 64, c[1] / 2 + 64, c[2] / 2 + 64, 170]

@@ -204,10 +204,7 @@ impl LiveViz {
                 .with_radii([rerun::Radius::new_ui_points(7.0)])
                 .with_labels([format!("station {}", state.station)]),
         )?;
-        let length = self
-            .travel
-            .and_then(|t| segment_in_travel(&state.origin, &state.direction, &t, &Vector3::zeros()))
-            .map_or(1.0, |[_, end]| end);
+        let length = self.beam_length(&state);
         super::scene::log_commanded_beam(
             &self.rec,
             state.station,
@@ -218,6 +215,14 @@ impl LiveViz {
         )?;
         self.deflector_state(t_s, state);
         Ok(())
+    }
+
+    /// Length of a beam from the device to where it leaves the working volume (1 m when the
+    /// volume is not known or the beam misses it).
+    fn beam_length(&self, state: &DeflectorState) -> f64 {
+        self.travel
+            .and_then(|t| segment_in_travel(&state.origin, &state.direction, &t, &Vector3::zeros()))
+            .map_or(1.0, |[_, end]| end)
     }
 
     /// The deflector's reported state (logged at the next flush).
@@ -312,7 +317,7 @@ impl LiveViz {
                     LIVE_CURRENT_POINT,
                     &rerun::Points3D::new([f32p(&r)])
                         .with_colors([[255u8, 255, 255, 255]])
-                        .with_radii([rerun::Radius::new_ui_points(6.0)])
+                        .with_radii([rerun::Radius::new_ui_points(8.0)])
                         .with_labels([format!("X {:.1} Y {:.1} Z {:.1} mm", x.x * 1e3, x.y * 1e3, x.z * 1e3)]),
                 )?;
             }
@@ -320,14 +325,16 @@ impl LiveViz {
         }
         if self.deflector_dirty {
             if let Some(d) = self.deflector {
-                let len = self.travel.map(|t| 0.2 * (t.max_corner() - t.min_corner()).norm()).unwrap_or(0.3);
-                let color: colors::Rgba = if d.settled { [90, 220, 110, 255] } else { [250, 160, 40, 255] };
+                // Drawn through the volume like the beam itself, so that it stands out among the
+                // measured lines from any viewpoint.
+                let len = self.beam_length(&d);
+                let color = colors::deflector(d.settled);
                 self.rec.log(
                     LIVE_DEFLECTOR,
                     &rerun::Arrows3D::from_vectors([f32v(&(d.direction * len))])
                         .with_origins([f32p(&d.origin)])
                         .with_colors([color])
-                        .with_radii([rerun::Radius::new_ui_points(3.0)])
+                        .with_radii([rerun::Radius::new_ui_points(3.5)])
                         .with_labels([d.describe()]),
                 )?;
             }
@@ -461,7 +468,7 @@ impl LiveViz {
             "**Campaign time** {:.1} s · **{}** readings ({:.0} Hz) on {} lines\n\n{current}\n\n{deflector}\n\n{}\
              **Running residual RMS** (line fits, before calibration): {}\n\n\
              Points in their station's colour, the white point is the reflector now, the arrow the beam \
-             (green settled, orange moving); faded lines are the commanded beams.",
+             (yellow settled, red moving); faded lines are the commanded beams.",
             self.t_s,
             self.pairs,
             self.rate_hz,

@@ -2,6 +2,8 @@
 //! find node pids, stop it.
 #![allow(dead_code)]
 
+pub mod rrd;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
