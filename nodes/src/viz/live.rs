@@ -25,6 +25,9 @@ use volcal::campaign::{LineGroup, ObsKind, Reading, MIN_BEAM_POINTS};
 use volcal::Travel;
 use volcal_sim::plan::segment_in_travel;
 
+/// Growth of a line (ratio of its points) after which it is refitted over all its points.
+pub const REFIT_GROWTH: f64 = 1.1;
+
 /// Most points drawn per line in the 3D view (every k-th reading, k doubling as the line grows).
 pub const DISPLAY_POINTS: usize = 256;
 
@@ -99,6 +102,10 @@ struct LineState {
     display_dirty: bool,
     sum_r2: f64,
     rms_m: Option<f64>,
+    /// The last full fit: centroid, oriented direction, mean reading, and the number of points
+    /// it was made from. Readings that arrive before the line has grown by [`REFIT_GROWTH`] are
+    /// referred to it, so the cost of a long line stays proportional to its readings.
+    fit: Option<(Point3<f64>, Vector3<f64>, f64, usize)>,
     /// No longer among the active lines: raw data dropped; later readings start a new segment.
     retired: bool,
 }
@@ -269,6 +276,7 @@ impl LiveViz {
                     display_dirty: false,
                     sum_r2: 0.0,
                     rms_m: None,
+                    fit: None,
                     retired: false,
                 });
                 self.current.insert(key, self.lines.len() - 1);
@@ -302,7 +310,7 @@ impl LiveViz {
         self.rec.set_duration_secs(paths::CAMPAIGN_TIME, self.t_s);
         let retiring = std::mem::take(&mut self.retiring);
         for &k in retiring.iter().chain(&self.active.clone()) {
-            stats.residuals += self.refit(k)?;
+            stats.residuals += self.refit(k, retiring.contains(&k))?;
             stats.lines += 1;
         }
         for k in retiring {
@@ -349,7 +357,8 @@ impl LiveViz {
 
     /// Refits an active line over all its points, logs the residuals of the new readings, the
     /// fitted line and the decimated cloud. Returns the residuals logged.
-    fn refit(&mut self, k: usize) -> anyhow::Result<usize> {
+    /// `last`: the line is retiring; its final fit is over all its points.
+    fn refit(&mut self, k: usize, last: bool) -> anyhow::Result<usize> {
         let rec = &self.rec;
         let line = &mut self.lines[k];
         let path = paths::line(&line.group);
@@ -362,17 +371,31 @@ impl LiveViz {
             )?;
             line.display_dirty = false;
         }
-        if line.group.kind != ObsKind::Beam || line.points.len() < MIN_BEAM_POINTS || line.logged == line.points.len() {
+        let fitted = line.fit.map_or(0, |f| f.3);
+        if line.group.kind != ObsKind::Beam
+            || line.points.len() < MIN_BEAM_POINTS
+            || (line.logged == line.points.len() && !(last && fitted < line.points.len()))
+        {
             return Ok(0);
         }
-        let fit = fit_line(&line.points);
-        let n = orient_with_readings(fit.direction, &line.points, &line.l);
-        let lm = line.l.iter().sum::<f64>() / line.l.len() as f64;
-        let r: Vec<f64> = line.points.iter().zip(&line.l).map(|(p, l)| (l - lm) - n.dot(&(p - fit.centroid))).collect();
-        let sum_r2: f64 = r.iter().map(|v| v * v).sum();
-        line.sum_r2 = sum_r2;
-        line.rms_m = Some((sum_r2 / r.len() as f64).sqrt());
-        let new = line.logged..r.len();
+        // A full refit when the line has grown by REFIT_GROWTH since the last one (amortised
+        // O(1) per reading) or is retiring; otherwise the new readings are referred to the last
+        // fit.
+        let full = fitted == 0 || last || line.points.len() as f64 >= REFIT_GROWTH * fitted as f64;
+        let first = if full { 0 } else { line.logged };
+        if full {
+            let fit = fit_line(&line.points);
+            let n = orient_with_readings(fit.direction, &line.points, &line.l);
+            let lm = line.l.iter().sum::<f64>() / line.l.len() as f64;
+            line.fit = Some((fit.centroid, n, lm, line.points.len()));
+            line.sum_r2 = 0.0;
+        }
+        let (c, n, lm, _) = line.fit.expect("fitted above");
+        let r: Vec<f64> = (first..line.points.len()).map(|i| (line.l[i] - lm) - n.dot(&(line.points[i] - c))).collect();
+        line.sum_r2 += r.iter().map(|v| v * v).sum::<f64>();
+        line.rms_m = Some((line.sum_r2 / line.points.len() as f64).sqrt());
+        let r = &r[line.logged - first..];
+        let new = line.logged..line.points.len();
         let count = new.len();
         rec.send_columns(
             paths::line_series(LIVE_RESIDUALS, &line.group).as_str(),
@@ -380,7 +403,7 @@ impl LiveViz {
                 TimeColumn::new_duration_secs(paths::CAMPAIGN_TIME, line.t[new.clone()].iter().copied()),
                 TimeColumn::new_sequence(paths::BEAM_INDEX, std::iter::repeat_n(line.index as i64, count)),
             ],
-            rerun::Scalars::new(r[new].iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
+            rerun::Scalars::new(r.iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
         )?;
         if line.logged == 0 {
             rec.log_static(
@@ -391,8 +414,14 @@ impl LiveViz {
                     .with_marker_sizes([1.5]),
             )?;
         }
-        line.logged = r.len();
-        let ends = geometry::line_extent(&line.points, &fit.centroid, &n);
+        line.logged = line.points.len();
+        if !self.dirty_stations.contains(&line.group.station) {
+            self.dirty_stations.push(line.group.station);
+        }
+        if !full {
+            return Ok(count);
+        }
+        let ends = geometry::line_extent(&line.points, &c, &n);
         rec.log(
             path.as_str(),
             &rerun::LineStrips3D::new([ends.map(|p| f32p(&p))])
@@ -406,9 +435,6 @@ impl LiveViz {
                 )])
                 .with_show_labels(false),
         )?;
-        if !self.dirty_stations.contains(&line.group.station) {
-            self.dirty_stations.push(line.group.station);
-        }
         Ok(count)
     }
 
