@@ -6,8 +6,9 @@
 #   docs/live.png   first screen of the viz node watching the short simulated campaign over DDS
 #                   (launch_configs/sim_campaign_short.yaml on a ROS domain of its own, this host
 #                   only), its recording stopped during the third station
+#   docs/diagnose.png first screen of `volcal diagnose --rerun` on bags/concealed/setup_drift.csv
 #
-# usage: docs/screenshots.sh [solve|live]   (default: both)
+# usage: docs/screenshots.sh [solve|diagnose|live]   (default: all three)
 # needs: xvfb-run and a Vulkan driver (apt-get install xvfb mesa-vulkan-drivers libvulkan1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -40,6 +41,11 @@ if [ "$which" = all ] || [ "$which" = solve ]; then
 volcal simulate --machine "$machine" --seed 7 --out "$work/campaign.csv"
 volcal solve "$work/campaign.csv" --machine "$machine" --out "$work/model.json" --rerun "$work/solve.rrd" >/dev/null || [ $? -eq 3 ]
 render "$work/solve.rrd" docs/solve.png
+fi
+if [ "$which" = all ] || [ "$which" = diagnose ]; then
+volcal diagnose bags/concealed/setup_drift.csv --machine launch_configs/machines/diagnosis_cmm.yaml \
+  --rerun "$work/diagnose.rrd" >/dev/null
+render "$work/diagnose.rrd" docs/diagnose.png
 fi
 [ "$which" = all ] || [ "$which" = live ] || exit 0
 

@@ -92,12 +92,13 @@ pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout 
     first_screen(Container::vertical([top.into(), function_views().into()]).shares([1.4, 1.0]), paths::POSITION_MM)
 }
 
-/// Shows the whole of the selected timeline in a plot, wherever the time cursor is (a plot of
-/// a long campaign otherwise opens on a short window around the cursor).
-pub fn whole_timeline(view: View) -> View {
-    use rerun::external::re_sdk_types::datatypes::{TimeRange, TimeRangeBoundary};
-    let all = TimeRange { start: TimeRangeBoundary::Infinite, end: TimeRangeBoundary::Infinite };
-    view.property("TimeAxis", &bp::TimeAxis::new().with_view_range(rerun::blueprint::components::TimeRange(all)))
+/// Shows `[from_s, to_s]` of [`paths::CAMPAIGN_TIME`] in a plot, wherever the time cursor is
+/// (a plot of a long campaign otherwise opens on a short window around the cursor).
+pub fn campaign_time_span(view: View, from_s: f64, to_s: f64) -> View {
+    use rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary};
+    let at = |s: f64| TimeRangeBoundary::Absolute(TimeInt((s * 1e9) as i64));
+    let span = TimeRange { start: at(from_s), end: at(to_s) };
+    view.property("TimeAxis", &bp::TimeAxis::new().with_view_range(rerun::blueprint::components::TimeRange(span)))
 }
 
 /// Shows only the last `seconds` of [`paths::CAMPAIGN_TIME`] before the time cursor.

@@ -38,7 +38,18 @@ pub fn layout(d: &Diagnosis, obs: &Observations) -> Layout {
         blueprint::rms_view("Residual RMS per line after (µm)", RMS_AFTER).into(),
     ])
     .shares([1.6, 1.0, 1.0]);
-    let series = |title: &str, root: &str| blueprint::whole_timeline(blueprint::series_view(title, root)).into();
+    let timeline = d.effects.first().map_or(paths::POSITION_MM, |e| timeline_of(&e.id));
+    // On campaign time, the whole campaign (with a margin); on positions the default fits.
+    let (t0, t1) = obs.t.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
+    let margin = 0.02 * (t1 - t0).max(1.0);
+    let series = |title: &str, root: &str| {
+        let v = blueprint::series_view(title, root);
+        if timeline == paths::CAMPAIGN_TIME && t0.is_finite() {
+            blueprint::campaign_time_span(v, t0 - margin, t1 + margin).into()
+        } else {
+            v.into()
+        }
+    };
     let mut right = vec![series("Residuals before: rigid-body model only (µm)", RESIDUALS_BEFORE)];
     for e in &d.effects {
         right.push(series(&format!("Signature of {} (µm)", e.id), &effect_signature(&e.id)));
@@ -61,7 +72,6 @@ pub fn layout(d: &Diagnosis, obs: &Observations) -> Layout {
         Container::vertical(right).into(),
     ])
     .shares([0.9, 1.1, 1.3]);
-    let timeline = d.effects.first().map_or(paths::POSITION_MM, |e| timeline_of(&e.id));
     blueprint::first_screen(root, timeline)
 }
 
