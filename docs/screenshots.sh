@@ -23,7 +23,10 @@ trap 'rm -rf "$work"' EXIT
 # Renders a recording to a PNG (the viewer writes a HiDPI picture; it is scaled to $size).
 render() {
   local rrd=$1 out=$2
-  XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$work} timeout 180 xvfb-run -a -s "-screen 0 ${size}x24" \
+  # A fresh HOME: the viewer restores its window state from earlier sessions otherwise, which
+  # can put an error notification over the picture.
+  mkdir -p "$work/home"
+  HOME="$work/home" XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$work} timeout 180 xvfb-run -a -s "-screen 0 ${size}x24" \
     .venv/bin/rerun "$rrd" --screenshot-to "$work/shot.png" --window-size "$size" >/dev/null 2>&1 || true
   [ -s "$work/shot.png" ] || { echo "no picture rendered for $rrd" >&2; exit 1; }
   .venv/bin/python - "$work/shot.png" "$out" "$size" <<'PY'
