@@ -11,7 +11,7 @@ use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis};
 use volcal::{solve, ErrorModel};
 use volcal_nodes::commands::sim_config;
 use volcal_nodes::machine::Machine;
-use volcal_sim::effects::{from_spec, EffectContext};
+use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::simulate::InjectedTruth;
 use volcal_sim::{simulate, Injection, Plan, SimConfig};
 
@@ -96,16 +96,10 @@ pub fn campaign(sc: &Scenario, a: f64, seed: u64) -> (Machine, SimConfig, Campai
     let m = machine(sc.precision);
     let mut cfg = sim_config(&m, plan(), 1000 + seed);
     cfg.environment.air_temp_rate_k_per_h = sc.air_rate_per_unit * a;
-    let ctx = EffectContext {
-        air_start: cfg.environment.air,
-        wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
-        air_equation: cfg.interferometer.air_equation,
-        travel: m.layout.travel,
-    };
-    let injections: Vec<Box<dyn Injection>> = if a == 0.0 {
+    let injections = if a == 0.0 {
         Vec::new()
     } else {
-        sc.spec.replace("{a}", &a.to_string()).split('+').map(|s| from_spec(s, &ctx).unwrap()).collect()
+        from_specs(&sc.spec.replace("{a}", &a.to_string()), &EffectContext::new(&cfg, m.layout.travel)).unwrap()
     };
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let out = simulate(&cfg, &refs, 2000 + seed).unwrap();

@@ -13,7 +13,7 @@ use rand::SeedableRng;
 use volcal::campaign::{prepare, Observations, ScaleExpansion};
 use volcal::diagnose::catalogue::Optics;
 use volcal::{ModelLayout, Representation, SolveOptions, Topology, Travel};
-use volcal_sim::effects::{from_spec, EffectContext};
+use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::{
     random_truth, simulate, Deflector, EnvironmentSim, Injection, Interferometer, Plan, SimConfig, Tracer, TruthSpec,
     VirtualMachine,
@@ -48,17 +48,7 @@ fn build_with(name: &'static str, intervals: usize, plan: Plan, seed: u64, effec
         environment: EnvironmentSim::default(),
         plan,
     };
-    let ctx = EffectContext {
-        air_start: cfg.environment.air,
-        wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
-        air_equation: cfg.interferometer.air_equation,
-        travel,
-    };
-    let injections: Vec<Box<dyn Injection>> = effects
-        .split('+')
-        .filter(|s| !s.is_empty())
-        .map(|s| from_spec(s, &ctx).expect("benchmark effect specs are valid"))
-        .collect();
+    let injections = from_specs(effects, &EffectContext::new(&cfg, travel)).expect("benchmark effect specs are valid");
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let out = simulate(&cfg, &refs, seed).expect("benchmark plan is valid");
     let obs = prepare(&out.campaign, &layout.travel, &ScaleExpansion::default()).expect("simulated data are valid").obs;

@@ -14,7 +14,7 @@ use volcal::campaign::{prepare, Campaign, Prepared};
 use volcal::estimator::Solution;
 use volcal::predict;
 use volcal::{gauge, solve, Axis, ErrorFunction, ErrorModel};
-use volcal_sim::effects::{from_spec, EffectContext};
+use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::{random_truth, simulate, Injection, Plan, SimConfig, VirtualMachine};
 
 /// A progress spinner on stderr (hidden when stderr is not a terminal).
@@ -100,18 +100,10 @@ pub fn simulate_cmd(
         cfg.environment.air_temp_rate_k_per_h = r;
     }
     cfg.environment.record_air |= opts.record_air;
-    let ctx = EffectContext {
-        air_start: cfg.environment.air,
-        wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
-        air_equation: cfg.interferometer.air_equation,
-        travel: machine.layout.travel,
-    };
+    let ctx = EffectContext::new(&cfg, machine.layout.travel);
     let specs: Vec<&str> =
         opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
-    let injections: Vec<Box<dyn Injection>> = specs
-        .iter()
-        .map(|s| from_spec(s, &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}")))
-        .collect::<Result<_>>()?;
+    let injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");
     let sim = simulate(&cfg, &refs, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -155,15 +147,22 @@ pub struct Solved {
 /// Prepares and solves a campaign for a machine. Input warnings go to stderr prefixed by
 /// `source`.
 pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, provenance: Provenance) -> Result<Solved> {
+    let prepared = prepare_campaign(campaign, &machine, source)?;
+    let solution = solve(&machine.layout, &prepared.obs, &machine.solve_options(), &[])
+        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
+    Ok(Solved { machine, prepared, solution, file })
+}
+
+/// The observations of a campaign for `machine`, its warnings printed with `source` (the file
+/// or bag they came from) and errors naming it.
+pub fn prepare_campaign(campaign: &Campaign, machine: &Machine, source: &str) -> Result<Prepared> {
     let prepared =
         prepare(campaign, &machine.layout.travel, &machine.expansion).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     for w in &prepared.warnings {
         eprintln!("warning: {source}: {w}");
     }
-    let solution = solve(&machine.layout, &prepared.obs, &machine.solve_options(), &[])
-        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-    let file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
-    Ok(Solved { machine, prepared, solution, file })
+    Ok(prepared)
 }
 
 /// Provenance of a solve.

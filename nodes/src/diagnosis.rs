@@ -7,14 +7,14 @@
 //! reviewer needs to check the decision: the statements, p-values, the candidates of every
 //! selection round, what remains after the refit and the change of the identified error map.
 
-use crate::commands::{load_campaign, provenance};
+use crate::commands::{load_campaign, prepare_campaign, provenance};
 use crate::machine::Machine;
 use crate::model_file::Provenance;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
-use volcal::campaign::{prepare, Observations};
+use volcal::campaign::Observations;
 use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis, Location};
 
 /// Format tag of the JSON file.
@@ -249,11 +249,7 @@ pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Pat
     let machine = Machine::load(machine_path)?;
     let campaign = load_campaign(campaign_path)?;
     let source = campaign_path.display().to_string();
-    let prepared =
-        prepare(&campaign, &machine.layout.travel, &machine.expansion).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-    for w in &prepared.warnings {
-        eprintln!("warning: {source}: {w}");
-    }
+    let prepared = prepare_campaign(&campaign, &machine, &source)?;
     let opts = DiagnoseOptions::new(
         machine.solve_options(),
         Optics { wavelength_vac_m: campaign.meta.wavelength_vac_m, air_equation: campaign.meta.air_equation },

@@ -65,6 +65,25 @@ pub struct EffectContext {
     pub travel: volcal::Travel,
 }
 
+impl EffectContext {
+    /// The context of effects injected into the simulation `cfg` of a machine with `travel`:
+    /// the simulation's starting air and its interferometer's wavelength and air equation.
+    pub fn new(cfg: &crate::SimConfig, travel: volcal::Travel) -> EffectContext {
+        EffectContext {
+            air_start: cfg.environment.air,
+            wavelength_vac_m: cfg.interferometer.wavelength_vac_m,
+            air_equation: cfg.interferometer.air_equation,
+            travel,
+        }
+    }
+}
+
+/// Builds the effects of a `+`-joined list of specs (blank ones ignored), e.g.
+/// `setup_drift:vx_m_per_s=2e-8+air_refraction`.
+pub fn from_specs(specs: &str, ctx: &EffectContext) -> Result<Vec<Box<dyn Injection>>, SpecError> {
+    specs.split('+').map(str::trim).filter(|s| !s.is_empty()).map(|s| from_spec(s, ctx)).collect()
+}
+
 /// Builds an effect from its spec.
 pub fn from_spec(spec: &str, ctx: &EffectContext) -> Result<Box<dyn Injection>, SpecError> {
     let (id, mut p) = parse_spec(spec)?;

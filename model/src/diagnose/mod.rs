@@ -187,9 +187,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
     let geo = Geometry::new(obs, &base, opts.optics);
     let dirs = catalogue::directions(obs, &base, &geo);
     let before = base.solution().clone();
-    let dof_ratio = before.stats.dof as f64 / obs.len() as f64;
-    let z0: Vec<f64> = (0..obs.len()).map(|i| before.residuals[i] / before.sigmas[i]).collect();
-    let locations = locate::locate(obs, &geo, &dirs, &z0, dof_ratio, opts.alpha);
+    let locations = locate::locate(obs, &geo, &dirs, &standardised(&before), dof_ratio(&before, obs.len()), opts.alpha);
     drop(base);
     // The readings as the refits see them: `probe_offset` moves the declared probe offsets.
     let mut work = obs.clone();
@@ -209,13 +207,14 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
         let f = fit(layout, &work, &opts.solve, &refs)?;
         let candidates = propose(&work, &geo, &dirs, &f, &selected);
-        let mut evaluated: Vec<Evaluated> = candidates.into_iter().map(|c| evaluate(&work, &f, c, opts)).collect();
+        let mut evaluated: Vec<Evaluated> = candidates.into_iter().map(|c| evaluate(&work, &f, c)).collect();
         evaluated.sort_by(|a, b| b.evidence.total_cmp(&a.evidence));
         let total_tests: usize = evaluated.iter().map(|e| e.cand.tests).sum::<usize>().max(1);
+        // A p-value corrected for the `tests` hypotheses of its candidate, re-corrected for all
+        // the hypotheses of the round (Bonferroni).
+        let corrected = |p: f64, tests: usize| p * total_tests as f64 / tests as f64;
         let accept = |e: &Evaluated| {
-            e.p_value * total_tests as f64 / e.cand.tests as f64 <= opts.alpha
-                && e.evidence > 0.0
-                && e.share >= opts.min_share
+            corrected(e.p_value, e.cand.tests) <= opts.alpha && e.evidence > 0.0 && e.share >= opts.min_share
         };
         // Cross-validation across lines for the campaign-wide effects that pass the other
         // criteria: the model and the effect are fitted on every other line and the effect's
@@ -248,8 +247,8 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                 let sw = fw.score_masked(e.cand.effect.as_ref(), Some(mask));
                 let stats = &fw.solution().stats;
                 let p = f_test(&sw, stats.chi2, stats.dof as f64, e.cand.tests);
-                e.without_dominant = Some(p * total_tests as f64 / e.cand.tests as f64);
-                if p * total_tests as f64 / e.cand.tests as f64 > opts.alpha {
+                e.without_dominant = Some(corrected(p, e.cand.tests));
+                if corrected(p, e.cand.tests) > opts.alpha {
                     continue;
                 }
             }
@@ -297,7 +296,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                     hyper: e.cand.hyper,
                     delta_chi2: e.score.delta_chi2,
                     rank: e.score.rank,
-                    p_value: (e.p_value * total_tests as f64 / e.cand.tests as f64).min(1.0),
+                    p_value: corrected(e.p_value, e.cand.tests).min(1.0),
                     evidence: e.evidence,
                     share: e.share,
                     cv_gain: e.cv_gain,
@@ -325,7 +324,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                 )
             })
             .collect();
-        let p_value = (best.p_value * total_tests as f64 / best.cand.tests as f64).min(1.0);
+        let p_value = corrected(best.p_value, best.cand.tests).min(1.0);
         drop(f);
         selected.push((best.cand.family, best.cand.effect));
         hypers.push(best.cand.hyper);
@@ -355,9 +354,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         e.coefficients = coeffs;
     }
     let after = current;
-    let z1: Vec<f64> = (0..obs.len()).map(|i| after.residuals[i] / after.sigmas[i]).collect();
-    let dof_ratio1 = after.stats.dof as f64 / obs.len() as f64;
-    let remaining = locate::locate(&work, &geo, &dirs, &z1, dof_ratio1, opts.alpha);
+    let remaining = locate::locate(&work, &geo, &dirs, &standardised(&after), dof_ratio(&after, obs.len()), opts.alpha);
     let excess_p = locate::chi2_sf(after.stats.chi2, after.stats.dof as f64);
     let unexplained = (excess_p < opts.alpha).then(|| {
         let mut s = format!(
@@ -477,7 +474,7 @@ fn propose(
     }
     // Scans on the current residuals.
     let sol = f.solution();
-    let z: Vec<f64> = (0..obs.len()).map(|i| sol.residuals[i] / sol.sigmas[i]).collect();
+    let z = standardised(sol);
     for a in 0..3 {
         if taken(Family::Periodic(a)) {
             continue;
@@ -506,7 +503,6 @@ fn propose(
             // Score of a step after point k-1 on the centred residuals (unit weights).
             let after = total - cum;
             let stat = (after - (n - m) / n * total).powi(2) / ((n - m) * m / n);
-            let _ = after;
             if stat > best {
                 best = stat;
                 at = k;
@@ -516,7 +512,7 @@ fn propose(
         steps.push((best, g, at));
     }
     // The local competitor: the cell of the volume with the largest excess.
-    let dof_ratio = sol.stats.dof as f64 / obs.len().max(1) as f64;
+    let dof_ratio = dof_ratio(sol, obs.len());
     let mut cell_excess = vec![0.0; locate::CELLS];
     for i in 0..obs.len() {
         cell_excess[locate::cell(geo, &obs.x[i])] += z[i] * z[i] - dof_ratio;
@@ -563,7 +559,7 @@ fn refine_period(obs: &Observations, geo: &Geometry, dirs: &[Vector3<f64>], z: &
 }
 
 /// Scores a candidate: F-test, evidence, share of the excess, cross-validation.
-fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOptions) -> Evaluated {
+fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate) -> Evaluated {
     let sol = f.solution();
     let score = f.score(cand.effect.as_ref());
     let n = obs.len() as f64;
@@ -572,7 +568,7 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOpt
     let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 {
         (1.0, f64::NEG_INFINITY)
     } else {
-        let s2 = (chi2 - score.delta_chi2).max(1e-300) / (dof - k);
+        let s2 = alternative_variance(&score, chi2, dof);
         let p = f_test(&score, chi2, dof, cand.tests);
         // BIC with the noise scale estimated under the alternative; the scanned hyper-parameter
         // counts as a parameter.
@@ -582,7 +578,6 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate, opts: &DiagnoseOpt
     };
     let excess = chi2 - dof;
     let share = if excess > 3.0 * (2.0 * dof).sqrt() { score.delta_chi2 / excess } else { 1.0 };
-    let _ = opts;
     Evaluated { cand, score, p_value, evidence, share, cv_gain: None, without_dominant: None }
 }
 
@@ -593,22 +588,33 @@ fn f_test(score: &Score, chi2: f64, dof: f64, tests: usize) -> f64 {
     if score.rank == 0 || dof - k < 1.0 {
         return 1.0;
     }
-    let s2 = (chi2 - score.delta_chi2).max(1e-300) / (dof - k);
+    let s2 = alternative_variance(score, chi2, dof);
     let fstat = (score.delta_chi2 / k) / s2;
     let p = FisherSnedecor::new(k, dof - k).map(|d| d.sf(fstat)).unwrap_or(1.0);
     (p * tests as f64).min(1.0)
 }
 
+/// Variance of unit weight under the alternative (the fit extended by the effect).
+fn alternative_variance(score: &Score, chi2: f64, dof: f64) -> f64 {
+    (chi2 - score.delta_chi2).max(1e-300) / (dof - score.rank as f64)
+}
+
+/// Standardised residuals `r / sigma` of every reading of a fit.
+fn standardised(s: &Solution) -> Vec<f64> {
+    s.residuals.iter().zip(&s.sigmas).map(|(r, sigma)| r / sigma).collect()
+}
+
+/// Residual degrees of freedom per reading: the `z^2` a reading contributes on average under
+/// noise alone.
+fn dof_ratio(s: &Solution, n: usize) -> f64 {
+    s.stats.dof as f64 / n.max(1) as f64
+}
+
 /// The line holding at least a third of the excess chi-square of a fit, if any.
 fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
-    let dof_ratio = sol.stats.dof as f64 / obs.len().max(1) as f64;
-    let excess: Vec<f64> = obs
-        .groups
-        .iter()
-        .map(|g| {
-            g.range().map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum::<f64>() - dof_ratio * g.len() as f64
-        })
-        .collect();
+    let (z, dof_ratio) = (standardised(sol), dof_ratio(sol, obs.len()));
+    let excess: Vec<f64> =
+        obs.groups.iter().map(|g| g.range().map(|i| z[i] * z[i]).sum::<f64>() - dof_ratio * g.len() as f64).collect();
     let total = sol.stats.chi2 - sol.stats.dof as f64;
     if total <= 3.0 * (2.0 * sol.stats.dof as f64).sqrt() {
         return None;
@@ -683,7 +689,7 @@ fn describe(
         }
         Family::Drift => {
             let mut parts = Vec::new();
-            for (si, (kind, sid)) in geo.stations.iter().enumerate() {
+            for (kind, sid) in &geo.stations {
                 let k = if *kind == ObsKind::Beam { "station" } else { "tracer" };
                 let v: Vec<(f64, f64)> =
                     ["vx", "vy", "vz"].iter().map(|c| get(&format!("{k}{sid}_{c}_m_per_s"))).collect();
@@ -695,7 +701,6 @@ fn describe(
                     v[1].0 * 3.6e9,
                     v[2].0 * 3.6e9
                 ));
-                let _ = si;
             }
             (coeffs.to_vec(), format!("setup_drift: the device drifted during each line: {}.", parts.join("; ")))
         }

@@ -13,7 +13,7 @@ use super::{secs, TICK};
 use crate::bag::{BagWriter, TopicHandle};
 use crate::convert;
 use crate::pairing::{Pair, Pairer, PairingConfig, PairingStats};
-use crate::ros::{now_ns, qos, shutdown, RosNode};
+use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
 use anyhow::{anyhow, Result};
 use ros2_client::qos::QosProfile;
 use ros2_client::{Publisher, Subscription};
@@ -42,23 +42,20 @@ struct TopicSource<M: RosMessage> {
 impl<M: RosMessage> Source for TopicSource<M> {
     fn drain(&mut self, bag: &mut BagWriter, pairer: &mut Pairer, out: &mut Vec<Pair>) -> Result<u64> {
         let mut n = 0;
-        loop {
-            match self.sub.take() {
-                Ok(Some((m, _))) => {
-                    let h = match self.handle {
-                        Some(h) => h,
-                        None => *self.handle.insert(bag.add_topic::<M>(&self.topic, &self.qos)?),
-                    };
-                    bag.write(h, &m, now_ns(), (self.stamp)(&m))?;
-                    if let Err(e) = (self.feed)(&m, pairer, out) {
-                        log::warn!("topic {}: {e:#}; not paired", self.topic);
-                    }
-                    n += 1;
-                }
-                Ok(None) => return Ok(n),
-                Err(e) => log::warn!("topic {}: a message does not decode as {}: {e:?}", self.topic, M::type_name()),
+        let (topic, qos, handle, stamp, feed) = (&self.topic, &self.qos, &mut self.handle, self.stamp, self.feed);
+        take_all(&self.sub, topic, |m| {
+            let h = match *handle {
+                Some(h) => h,
+                None => *handle.insert(bag.add_topic::<M>(topic, qos)?),
+            };
+            bag.write(h, &m, now_ns(), stamp(&m))?;
+            if let Err(e) = feed(&m, pairer, out) {
+                log::warn!("topic {topic}: {e:#}; not paired");
             }
-        }
+            n += 1;
+            Ok(())
+        })?;
+        Ok(n)
     }
 }
 

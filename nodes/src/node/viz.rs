@@ -18,17 +18,16 @@
 use super::{secs, TICK};
 use crate::convert;
 use crate::machine::Machine;
-use crate::ros::{now_ns, qos, shutdown, RosNode};
+use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
 use crate::viz::live::{DeflectorState, LiveViz};
 use crate::viz::{blueprint, RerunArgs};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use nalgebra::{Point3, Vector3};
-use ros2_client::Subscription;
 use std::path::PathBuf;
 use std::time::Instant;
 use volcal_msgs::msg::*;
-use volcal_msgs::{topics, RosMessage};
+use volcal_msgs::topics;
 use volcal_sim::instruments::direction_from_angles;
 
 /// The node's own flags, before `--ros-args`.
@@ -104,17 +103,6 @@ impl LagStats {
             v.iter().sum::<f64>() / v.len().max(1) as f64
         };
         (mean(&|t| t <= a.0 + window_s), mean(&|t| t >= b.0 - window_s))
-    }
-}
-
-/// Takes every message waiting on `sub`, warning about undecodable ones.
-fn take_all<M: RosMessage>(sub: &Subscription<M>, topic: &str, mut f: impl FnMut(M) -> Result<()>) -> Result<()> {
-    loop {
-        match sub.take() {
-            Ok(Some((m, _))) => f(m)?,
-            Ok(None) => return Ok(()),
-            Err(e) => log::warn!("topic {topic}: a message does not decode as {}: {e:?}", M::type_name()),
-        }
     }
 }
 

@@ -17,4 +17,4 @@ pub mod qos;
 pub mod shutdown;
 
 pub use args::NodeArgs;
-pub use node::{now_ns, RosNode};
+pub use node::{now_ns, take_all, RosNode};

@@ -13,6 +13,19 @@ use std::net::{IpAddr, Ipv4Addr};
 use std::time::{Duration, Instant};
 use volcal_msgs::RosMessage;
 
+/// Takes every message waiting on `topic`'s subscription `sub` and hands it to `f`; an
+/// undecodable message is logged with the topic's name and skipped, not left to block the ones
+/// behind it.
+pub fn take_all<M: RosMessage>(sub: &Subscription<M>, topic: &str, mut f: impl FnMut(M) -> Result<()>) -> Result<()> {
+    loop {
+        match sub.take() {
+            Ok(Some((m, _))) => f(m)?,
+            Ok(None) => return Ok(()),
+            Err(e) => log::warn!("topic {topic}: a message does not decode as {}: {e:?}", M::type_name()),
+        }
+    }
+}
+
 /// Wall-clock time, nanoseconds since the Unix epoch (the stamp of every message).
 pub fn now_ns() -> i64 {
     std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as i64).unwrap_or(0)
