@@ -6,8 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 domain="${1:-117}"
-cargo build -q -p volcal_nodes --bins
-volcal="${CARGO_TARGET_DIR:-target}/debug/volcal"
+cargo build -q --release -p volcal_cli -p volcal_nodes --bins
+volcal="${CARGO_TARGET_DIR:-target}/release/volcal"
 rm -rf bags/sim_short bags/sim_tracer_short bags/sim_otf_batched
 
 # Fixed-beam campaign, static points paired by trigger: 3 positions x 16 beams x 20 points.

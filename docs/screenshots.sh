@@ -14,8 +14,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 size=1920x1080
 [ -x .venv/bin/rerun ] || { python3 -m venv .venv && .venv/bin/pip install -q -r .ci/requirements.txt; }
-cargo build -q -p volcal_nodes --bins
-bin=${CARGO_TARGET_DIR:-target}/debug
+cargo build -q --release -p volcal_cli -p volcal_nodes --bins
+bin=${CARGO_TARGET_DIR:-target}/release
 volcal() { "$bin/volcal" "$@"; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -7,10 +7,10 @@
 //! model has absorbed what it can, which is what any diagnosis can see.
 
 use volcal::campaign::{prepare, Campaign, Observations};
-use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions, Diagnosis};
+use volcal::diagnose::{diagnose, geometry::Optics, DiagnoseOptions, Diagnosis};
 use volcal::{solve, ErrorModel};
-use volcal_nodes::commands::sim_config;
-use volcal_nodes::machine::Machine;
+use volcal_formats::machine::Machine;
+use volcal_formats::plan::sim_config;
 use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::simulate::InjectedTruth;
 use volcal_sim::{simulate, Injection, Plan, SimConfig};
@@ -88,7 +88,7 @@ pub fn machine(precision: bool) -> Machine {
 /// points, out and back on the fly at three speeds, so that latency (proportional to speed)
 /// and reversal (not) can be told apart.
 pub fn plan() -> Plan {
-    volcal_nodes::commands::load_plan(Some(&crate::repo_root().join("launch_configs/plans/diagnosis.yaml"))).unwrap()
+    volcal_formats::plan::load_plan(Some(&crate::repo_root().join("launch_configs/plans/diagnosis.yaml"))).unwrap()
 }
 
 /// A simulated campaign of a scenario at strength `a` (0: the clean campaign of the same seed).

@@ -6,8 +6,8 @@
 # (tests/tests/diagnose_catalogue.rs), rounded up. Run from the repository root.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-cargo build -q -p volcal_nodes --bin volcal
-volcal="${CARGO_TARGET_DIR:-target}/debug/volcal"
+cargo build -q --release -p volcal_cli --bin volcal
+volcal="${CARGO_TARGET_DIR:-target}/release/volcal"
 plan=launch_configs/plans/diagnosis.yaml
 std=launch_configs/machines/diagnosis_cmm.yaml
 prec=launch_configs/machines/diagnosis_cmm_precision.yaml

@@ -11,7 +11,7 @@
 
 use rand::SeedableRng;
 use volcal::campaign::{prepare, Observations, ScaleExpansion};
-use volcal::diagnose::catalogue::Optics;
+use volcal::diagnose::geometry::Optics;
 use volcal::{ModelLayout, Representation, SolveOptions, Topology, Travel};
 use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::{

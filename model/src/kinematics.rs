@@ -236,3 +236,20 @@ pub fn rotate(r: &Vector3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
         Rotation3::new(*r) * v
     }
 }
+
+/// The exact volumetric error of a model. It lives here, not in [`crate::model`], so that the
+/// model's layout and small-angle algebra know nothing of the exact chain built on them.
+impl ErrorModel {
+    /// Volumetric error `e(X, p)`: actual minus indicated reflector position, by the exact
+    /// kinematic chain (finite rotations). It differs from [`ErrorModel::error_linear`] by
+    /// second-order terms (rotation squared times lever arm: about 1 nm for 30 urad over 1 m).
+    pub fn error(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Vector3<f64> {
+        self.exact_position(x, p) - (x + p)
+    }
+
+    /// Actual reflector position by the exact homogeneous-transform chain (finite rotations).
+    /// The small-angle [`ErrorModel::error`] equals `exact_position - (x + p)` to second order.
+    pub fn exact_position(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
+        exact_position(self, x, p)
+    }
+}

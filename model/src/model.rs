@@ -184,13 +184,6 @@ impl ErrorModel {
         ErrorModel { layout, u: vec![0.0; n] }
     }
 
-    /// Volumetric error `e(X, p)`: actual minus indicated reflector position, by the exact
-    /// kinematic chain (finite rotations). It differs from [`ErrorModel::error_linear`] by
-    /// second-order terms (rotation squared times lever arm: about 1 nm for 30 urad over 1 m).
-    pub fn error(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Vector3<f64> {
-        self.exact_position(x, p) - (x + p)
-    }
-
     /// Volumetric error by the small-angle model of patent eq. (4): `sum t + sum r x h`.
     pub fn error_linear(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Vector3<f64> {
         self.layout.sensitivity(x, p).apply(&self.u)
@@ -224,11 +217,5 @@ impl ErrorModel {
     pub fn set_function(&mut self, f: ErrorFunction, g: impl Fn(f64) -> f64) {
         let c = self.layout.basis(f).fit(g);
         self.coeffs_mut(f).copy_from_slice(&c);
-    }
-
-    /// Actual reflector position by the exact homogeneous-transform chain (finite rotations).
-    /// The small-angle [`ErrorModel::error`] equals `exact_position - (x + p)` to second order.
-    pub fn exact_position(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
-        crate::kinematics::exact_position(self, x, p)
     }
 }

@@ -14,12 +14,17 @@
 //! `volcal_msgs::msg::dds_::Abscissa_` ([`RosMessage::dds_type_name`]); the topic
 //! `/interferometer/abscissa` as `rt/interferometer/abscissa` ([`dds_topic_name`]).
 //!
+//! [`cdr`] encodes and decodes the payloads (CDR with the 4-byte encapsulation header) that
+//! DDS carries and rosbag2 stores in MCAP.
+//!
 //! ## Topics
 //!
 //! The topic names are constants in [`topics`]; ARCHITECTURE.md has the table of who
 //! publishes and who subscribes.
 
 include!(concat!(env!("OUT_DIR"), "/generated.rs"));
+
+pub mod cdr;
 
 use builtin_interfaces::msg::Time;
 use std_msgs::msg::Header;

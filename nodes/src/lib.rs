@@ -1,47 +1,22 @@
-//! # volcal_nodes: the imperative shell
+//! # volcal_nodes: the ROS 2 node set
 //!
-//! Everything that touches files, the network, clocks or Rerun: the `volcal` command-line tool
-//! and the ROS 2 nodes. Each binary parses arguments, loads files, calls the pure core
-//! ([`volcal`]) and the simulator ([`volcal_sim`]), and prints.
+//! The ROS 2 runtime and the node loops with their instrument backends. Each node binary
+//! (`volcal_interferometer`, `volcal_machine`, ...) is a one-line `main` around [`node`]; the
+//! `volcal` tool runs the same loops as `volcal node NAME` and launches them with [`launch`].
 //!
-//! - [`machine`]: the machine file (YAML).
-//! - [`campaign_csv`]: the campaign interchange format.
-//! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
-//! - [`commands`]: the subcommands as functions; [`diagnosis`]: `volcal diagnose`.
-//! - [`report`]: text summaries.
-//! - The ROS 2 node set: [`ros`] (plumbing), [`node`] (the nodes), [`backend`] (instrument
-//!   backends, simulated or hardware), [`pairing`], [`centring`], [`bag`] and [`bag_campaign`]
-//!   (rosbag2 MCAP bags), [`convert`], [`launch`] and [`launch_cmd`] (`volcal launch`, `bag`),
-//!   [`bench`] (`volcal bench`), [`demo_chain`] (the node-set half of `volcal demo`).
-//! - [`validation`], [`paper_cmd`], [`merge`]: the tracer issue's commands (`volcal validate`,
-//!   `volcal paper`, `volcal merge`).
-//! - [`viz`]: Rerun visualisation (recorded and live).
+//! - [`ros`]: ROS 2 plumbing on `ros2-client` (participant, arguments, QoS, domains, shutdown).
+//! - [`node`]: one module per node, and [`node::by_name`], the table `volcal node` and
+//!   [`launch`] use.
+//! - [`backend`]: the hardware-backend traits of the instrument nodes and their simulated
+//!   implementations.
+//! - [`centring`]: centring the reflector on the beam, used by the sequencer.
+//! - [`launch`]: the ROS 2 YAML launch subset: parsing, processes, respawn, clean stop.
+//!
+//! Files other than bags come from `volcal_formats`, bags and pairing from `volcal_bag`, the
+//! live view from `volcal_viz`. Nothing here is called back by those crates.
 
 pub mod backend;
-pub mod bag;
-pub mod bag_campaign;
-pub mod bench;
-pub mod campaign_csv;
 pub mod centring;
-pub mod commands;
-pub mod convert;
-pub mod demo_chain;
-pub mod diagnosis;
 pub mod launch;
-pub mod launch_cmd;
-pub mod machine;
-pub mod merge;
-pub mod model_file;
 pub mod node;
-pub mod pairing;
-pub mod paper_cmd;
-pub mod report;
 pub mod ros;
-pub mod truth_file;
-pub mod validation;
-pub mod viz;
-
-/// `volcal <version>` for provenance records.
-pub fn software_version() -> String {
-    format!("volcal {}", env!("CARGO_PKG_VERSION"))
-}

@@ -1,9 +1,9 @@
 //! Development aid: runs the diagnosis on campaigns hiding each effect, for a few seeds.
 use nalgebra::Vector3;
 use volcal::campaign::prepare;
-use volcal::diagnose::{catalogue::Optics, diagnose, DiagnoseOptions};
-use volcal_nodes::commands::sim_config;
-use volcal_nodes::machine::Machine;
+use volcal::diagnose::{diagnose, geometry::Optics, DiagnoseOptions};
+use volcal_formats::machine::Machine;
+use volcal_formats::plan::sim_config;
 use volcal_sim::effects::{from_spec, EffectContext};
 use volcal_sim::{simulate, Acquisition, Plan};
 
@@ -11,7 +11,7 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let spec = args.get(1).cloned().unwrap_or_default();
     let seeds: u64 = args.get(2).map(|s| s.parse().unwrap()).unwrap_or(3);
-    let text = volcal_nodes::machine::DEMO_MACHINE.replace("intervals: 12", "intervals: 8");
+    let text = volcal_formats::machine::DEMO_MACHINE.replace("intervals: 12", "intervals: 8");
     let m = Machine::parse(&text).unwrap();
     let plan = Plan {
         directions_per_station: 20,

@@ -4,8 +4,8 @@
 use nalgebra::Vector3;
 use volcal::campaign::prepare;
 use volcal::{gauge, predict, solve, ErrorModel, ModelLayout, Representation, Topology};
-use volcal_nodes::commands::sim_config;
-use volcal_nodes::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::plan::sim_config;
 use volcal_sim::{simulate, Plan, SimConfig};
 
 fn machine(topology: &str) -> Machine {

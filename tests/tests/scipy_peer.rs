@@ -2,9 +2,9 @@
 //! (benches/peer/reduced_lsq.py) solves the same campaign and agrees with volcal.
 
 use volcal::campaign::prepare;
-use volcal_nodes::commands::sim_config;
-use volcal_nodes::machine::{Machine, DEMO_MACHINE};
-use volcal_nodes::model_file::{ModelFile, Provenance};
+use volcal_formats::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::model_file::{ModelFile, Provenance};
+use volcal_formats::plan::sim_config;
 use volcal_sim::{simulate, Plan};
 
 #[test]
@@ -15,7 +15,7 @@ fn scipy_peer_agrees_with_volcal() {
     let cfg = sim_config(&m, Plan::patent_example(), 1);
     let out = simulate(&cfg, &[], 1).unwrap();
     let csv = dir.join("patent.csv");
-    volcal_nodes::campaign_csv::write(&csv, &out.campaign).unwrap();
+    volcal_formats::campaign_csv::write(&csv, &out.campaign).unwrap();
     let prep = prepare(&out.campaign, &m.layout.travel, &m.expansion).unwrap();
     let sol = volcal::solve(&m.layout, &prep.obs, &m.solve_options(), &[]).unwrap();
     let model = dir.join("model.json");

@@ -5,9 +5,9 @@
 //! would give there (its share of the degrees of freedom), with a Bonferroni correction over the
 //! regions tested, so that clean data locate nothing.
 
-use super::catalogue::Geometry;
+use super::geometry::{cell, cell_label, Geometry, CELLS};
 use crate::campaign::{ObsKind, Observations};
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 
@@ -40,25 +40,6 @@ impl Location {
             0.0
         }
     }
-}
-
-/// Number of cells of the volume (thirds of each axis's travel).
-pub const CELLS: usize = 27;
-
-/// Cell of the volume holding machine coordinates `x`.
-pub fn cell(geo: &Geometry, x: &Point3<f64>) -> usize {
-    let mut c = 0;
-    for a in 0..3 {
-        let u = ((geo.unit(a, x[a]) + 1.0) / 2.0 * 3.0).floor().clamp(0.0, 2.0) as usize;
-        c = c * 3 + u;
-    }
-    c
-}
-
-/// "X high third, Y low third, Z middle third".
-pub fn cell_label(c: usize) -> String {
-    let names = ["low", "middle", "high"];
-    format!("X {} third, Y {} third, Z {} third", names[c / 9], names[(c / 3) % 3], names[c % 3])
 }
 
 /// Upper-tail probability of a chi-square with `dof` degrees of freedom.

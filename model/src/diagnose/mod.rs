@@ -22,13 +22,14 @@
 //!    before and after, the change in the identified error map, and whatever stays unexplained.
 
 pub mod catalogue;
+pub mod geometry;
 pub mod locate;
 
 use crate::campaign::{ObsKind, Observations};
 use crate::estimator::{fit, Effect, Fit, Score, Solution, SolveError, SolveOptions};
 use crate::model::{ErrorModel, ModelLayout};
 use crate::predict;
-use catalogue::{Geometry, Optics};
+use geometry::{Geometry, Optics};
 pub use locate::Location;
 use nalgebra::Vector3;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
@@ -309,7 +310,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         if evaluated[pos].cand.family == Family::Local {
             // Confined to one place better than any catalogue effect explains it: reported as
             // unexplained, where it is.
-            local = evaluated[pos].cand.hyper.map(|c| locate::cell_label(c as usize));
+            local = evaluated[pos].cand.hyper.map(|c| geometry::cell_label(c as usize));
             break;
         }
         let best = evaluated.swap_remove(pos);
@@ -513,15 +514,15 @@ fn propose(
     }
     // The local competitor: the cell of the volume with the largest excess.
     let dof_ratio = dof_ratio(sol, obs.len());
-    let mut cell_excess = vec![0.0; locate::CELLS];
+    let mut cell_excess = vec![0.0; geometry::CELLS];
     for i in 0..obs.len() {
-        cell_excess[locate::cell(geo, &obs.x[i])] += z[i] * z[i] - dof_ratio;
+        cell_excess[geometry::cell(geo, &obs.x[i])] += z[i] * z[i] - dof_ratio;
     }
     if let Some((c, _)) = cell_excess.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) {
         push(
             Family::Local,
             Box::new(catalogue::local_anomaly(obs, dirs, geo, c)),
-            locate::CELLS,
+            geometry::CELLS,
             Some(c as f64),
             &mut out,
         );

@@ -8,14 +8,14 @@
 //! The solver never subscribes to those topics.
 
 use super::*;
-use crate::commands::{load_plan, sim_config};
-use crate::machine::{Machine, DEMO_MACHINE};
 use crate::ros::NodeArgs;
 use anyhow::{anyhow, Result};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;
 use volcal::environment::AirIndexEquation;
+use volcal_formats::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::plan::{load_plan, sim_config};
 use volcal_sim::{BeamLine, Plan, SimConfig};
 
 /// Below this return-signal strength the interferometer loses its count.

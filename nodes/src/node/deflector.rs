@@ -6,7 +6,7 @@
 //! Parameters: `backend` (sim), and for the sim backend `machine`, `seed`, `settle_s` (default:
 //! the machine file's deflector settling time).
 
-use super::{check_backend, TICK};
+use super::runtime::{check_backend, TICK};
 use crate::backend::sim::{SimDeflector, SimWorld};
 use crate::backend::DeflectorBackend;
 use crate::ros::{now_ns, qos, shutdown, RosNode};

@@ -3,7 +3,7 @@
 //!
 //! Parameters: `backend` (sim), `rate_hz`, and for the sim backend `machine`, `seed`.
 
-use super::{check_backend, secs};
+use super::runtime::{check_backend, secs};
 use crate::backend::sim::{SimEnvironment, SimWorld};
 use crate::backend::EnvironmentBackend;
 use crate::ros::{now_ns, qos, shutdown, RosNode};

@@ -7,12 +7,12 @@
 //! (1.0), and for the sim backend `machine`, `plan`, `seed`, `signal_noise` (0.001).
 
 use super::latch::PendingTriggers;
-use super::{check_backend, secs, TICK};
+use super::runtime::{check_backend, secs, TICK};
 use crate::backend::sim::{SimInterferometer, SimWorld};
 use crate::backend::{InterferometerBackend, LengthReading};
-use crate::convert::{self, info_to_msg};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{bail, Result};
+use volcal_bag::convert::{self, info_to_msg};
 use volcal_msgs::msg::{Abscissa, AbscissaBatch, BeamState, InterferometerInfo, ReflectorTruth, Trigger};
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;

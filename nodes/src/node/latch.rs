@@ -2,9 +2,9 @@
 //! tracer): a trigger is latched as soon as the backend can read, or dropped with a warning
 //! after the latch timeout (the sequencer then retries with a new trigger).
 
-use crate::pairing::trigger_type;
 use anyhow::Result;
 use ros2_client::Subscription;
+use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::Trigger;
 
 pub struct PendingTriggers {

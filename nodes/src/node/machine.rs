@@ -10,13 +10,13 @@
 //! Parameters: `backend` (sim), `rate_hz` (100), `idle_rate_hz` (2), `batch` (1), and for the
 //! sim backend `machine`, `seed`.
 
-use super::{check_backend, secs, TICK};
+use super::runtime::{check_backend, secs, TICK};
 use crate::backend::sim::{SimMachine, SimWorld};
 use crate::backend::{MachineBackend, MachineState, MotionCommand, Truth};
-use crate::pairing::trigger_type;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
+use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::{MachineCommand, MachinePosition, MachinePositionBatch, ReflectorTruth, Trigger};
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;

@@ -1,5 +1,5 @@
 //! The recorder node: writes every topic of the node set to a bag and pairs readings with
-//! machine coordinates ([`crate::pairing`]), writing the pairs to `/campaign/pairs` in the bag and
+//! machine coordinates ([`volcal_bag::pairing`]), writing the pairs to `/campaign/pairs` in the bag and
 //! publishing them. A chunk is closed every `flush_period_s`, so a recorder killed with SIGKILL
 //! loses at most that much; on SIGINT/SIGTERM it finishes the bag properly.
 //!
@@ -9,16 +9,16 @@
 //! (true), `record_truth` (false: the simulation truth topics are not recorded), `drain_s`
 //! (0.3: how long to keep receiving after a stop request).
 
-use super::{secs, TICK};
-use crate::bag::{BagWriter, TopicHandle};
-use crate::convert;
-use crate::pairing::{Pair, Pairer, PairingConfig, PairingStats};
+use super::runtime::{secs, TICK};
 use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
 use anyhow::{anyhow, Result};
 use ros2_client::qos::QosProfile;
 use ros2_client::{Publisher, Subscription};
 use std::path::PathBuf;
 use std::time::Instant;
+use volcal_bag::convert;
+use volcal_bag::pairing::{Pair, Pairer, PairingConfig, PairingStats};
+use volcal_bag::{BagWriter, TopicHandle};
 use volcal_msgs::msg::*;
 use volcal_msgs::{topics, RosMessage};
 

@@ -23,18 +23,18 @@
 //! `retries` (15), `topic_timeout_s` (10), `wait_for_recorder` (true), `finish_timeout_s` (10),
 //! `probe_step_m` (0.4e-3), `recentre_below` (0.99).
 
-use super::secs;
+use super::runtime::secs;
 use crate::backend::sim::LOSS_THRESHOLD;
 use crate::centring::{lateral_basis, vertex, LineFollower};
-use crate::commands::load_plan;
-use crate::machine::{Machine, DEMO_MACHINE};
-use crate::pairing::trigger_type;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
 use ros2_client::{Publisher, Subscription};
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
+use volcal_bag::pairing::trigger_type;
+use volcal_formats::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::plan::load_plan;
 use volcal_msgs::msg::{
     Abscissa, BeamCommand, BeamState, MachineCommand, MachinePosition, MachinePositionBatch, SequencerStatus,
     SyncedPair, TracerRange, Trigger,

@@ -6,33 +6,19 @@
 //! JSON; default `model.json` inside the bag directory), `linger_s` (how long to keep serving
 //! the model; negative: until stopped, the default).
 
-use super::secs;
-use crate::bag_campaign;
-use crate::commands::{probe_offsets, solve_campaign, summary};
-use crate::convert::error_model_msg;
-use crate::machine::{Machine, DEMO_MACHINE};
-use crate::model_file::{sha256_file, Provenance};
+use super::runtime::secs;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, Result};
 use sha2::{Digest, Sha256};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
+use volcal_bag::campaign::{self, input_sha256};
+use volcal_bag::convert::error_model_msg;
+use volcal_formats::machine::{Machine, DEMO_MACHINE};
+use volcal_formats::model_file::{sha256_file, Provenance};
+use volcal_formats::solving::{probe_offsets, solve_campaign, summary};
 use volcal_msgs::msg::ErrorModel;
 use volcal_msgs::topics;
-
-/// SHA-256 of a campaign input: a file, or the MCAP files of a bag directory in order.
-pub fn input_sha256(path: &Path) -> Result<String> {
-    if path.is_dir() {
-        let bag = crate::bag::Bag::open(path)?;
-        let mut h = Sha256::new();
-        for f in &bag.files {
-            h.update(std::fs::read(f).map_err(|e| anyhow!("cannot read {}: {e}", f.display()))?);
-        }
-        Ok(format!("{:x}", h.finalize()))
-    } else {
-        sha256_file(path)
-    }
-}
 
 pub fn run(node: &mut RosNode) -> Result<()> {
     let bag: PathBuf = node.args.require::<String>("bag")?.into();
@@ -53,14 +39,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         ),
     };
     let started = Instant::now();
-    let campaign = bag_campaign::read(&bag)?;
+    let campaign = campaign::read(&bag)?;
     log::info!("replaying {} pairs from {}", campaign.readings.len(), bag.display());
     let provenance = Provenance {
         input: bag.display().to_string(),
         input_sha256: input_sha256(&bag)?,
         machine: machine_name,
         machine_sha256: machine_sha,
-        software: crate::software_version(),
+        software: volcal_formats::software_version(),
     };
     let solved = solve_campaign(&campaign, machine, &bag.display().to_string(), provenance)?;
     solved.file.write(&out)?;

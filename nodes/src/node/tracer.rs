@@ -6,12 +6,12 @@
 //! `plan` (a tracer plan: its stations are the tracer's positions), `seed`.
 
 use super::latch::PendingTriggers;
-use super::{check_backend, TICK};
+use super::runtime::{check_backend, TICK};
 use crate::backend::sim::{SimTracer, SimWorld};
 use crate::backend::TracerBackend;
-use crate::convert::{self, info_to_msg};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::Result;
+use volcal_bag::convert::{self, info_to_msg};
 use volcal_msgs::msg::{InterferometerInfo, ReflectorTruth, TracerRange, Trigger};
 use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;

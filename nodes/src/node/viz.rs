@@ -1,5 +1,5 @@
 //! The viz node: watches a campaign live in Rerun. It subscribes to the campaign topics and
-//! feeds [`crate::viz::live::LiveViz`]: `/campaign/pairs` (the recorder's synchronised pairs),
+//! feeds [`volcal_viz::live::LiveViz`]: `/campaign/pairs` (the recorder's synchronised pairs),
 //! `/machine/position` and `/machine/position_batch` (the current point), `/deflector/command`
 //! and `/deflector/state` (stations, commanded beams, the beam now), `/sequencer/status`
 //! (progress). It only listens: nothing it does reaches the recorder.
@@ -15,20 +15,20 @@
 //! stays flat, one that falls behind has a lag that grows. The lags of the first and the last
 //! ten seconds are compared in the exit report.
 
-use super::{secs, TICK};
-use crate::convert;
-use crate::machine::Machine;
+use super::runtime::{secs, TICK};
 use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
-use crate::viz::live::{DeflectorState, LiveViz};
-use crate::viz::{blueprint, RerunArgs};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use nalgebra::{Point3, Vector3};
 use std::path::PathBuf;
 use std::time::Instant;
+use volcal_bag::convert;
+use volcal_formats::machine::Machine;
 use volcal_msgs::msg::*;
 use volcal_msgs::topics;
 use volcal_sim::instruments::direction_from_angles;
+use volcal_viz::live::{DeflectorState, LiveViz};
+use volcal_viz::{blueprint, RerunArgs};
 
 /// The node's own flags, before `--ros-args`.
 #[derive(Parser, Debug)]
@@ -114,7 +114,7 @@ fn rerun_args(node: &RosNode) -> Result<RerunArgs> {
         // the default address.
         connect: node.args.get::<String>("rerun_connect")?.filter(|s| !s.is_empty()).map(|s| {
             if s == "default" || s == "true" {
-                crate::viz::DEFAULT_CONNECT_ADDR.to_string()
+                volcal_viz::DEFAULT_CONNECT_ADDR.to_string()
             } else {
                 s
             }
@@ -308,7 +308,7 @@ mod tests {
                 "-p",
                 "rerun:=x.rrd",
                 "-p",
-                &format!("rerun_connect:={}", crate::viz::DEFAULT_CONNECT_ADDR)
+                &format!("rerun_connect:={}", volcal_viz::DEFAULT_CONNECT_ADDR)
             ]
         );
         assert_eq!(a(&["--rerun-spawn"]), ["--ros-args", "-p", "rerun_spawn:=true"]);

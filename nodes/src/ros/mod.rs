@@ -5,12 +5,10 @@
 //! - [`node`]: a node (participant, domain, loopback-only discovery, remaps) and its typed
 //!   publishers and subscriptions.
 //! - [`qos`]: the QoS profiles of the node set.
-//! - [`cdr`]: CDR payloads with their encapsulation header, as stored in MCAP.
 //! - [`domain`]: leasing a `ROS_DOMAIN_ID` no other process on this host uses.
 //! - [`shutdown`]: SIGINT/SIGTERM as a flag the node loops poll.
 
 pub mod args;
-pub mod cdr;
 pub mod domain;
 pub mod node;
 pub mod qos;

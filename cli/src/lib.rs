@@ -1,0 +1,20 @@
+//! # volcal_cli: the `volcal` command-line tool
+//!
+//! Each subcommand is a function here that takes argument values, calls the libraries below and
+//! prints or writes files; `main.rs` only parses the command line. Nothing below calls back into
+//! this crate.
+//!
+//! - [`commands`]: `simulate`, `solve`, `predict`, `map`, `report`, `demo` (the offline half).
+//! - [`diagnosis`]: `volcal diagnose` (the `volcal-diagnosis v1` JSON and the text report).
+//! - [`validation`], [`paper_cmd`]: `volcal validate` and `volcal paper` (Han et al. 2021).
+//! - [`launch_cmd`]: `volcal launch`, `volcal bag info`, `volcal report BAG`.
+//! - [`bench`]: `volcal bench` (throughput of the recording chain).
+//! - [`demo_chain`]: the node-set half of `volcal demo`.
+
+pub mod bench;
+pub mod commands;
+pub mod demo_chain;
+pub mod diagnosis;
+pub mod launch_cmd;
+pub mod paper_cmd;
+pub mod validation;

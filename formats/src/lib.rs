@@ -1,0 +1,30 @@
+//! # volcal_formats: every file volcal reads or writes, other than a bag
+//!
+//! The machine file (YAML), campaign plans, the campaign CSV, the model and truth JSON, the text
+//! reports and the merging of campaigns, plus what every reader of those files shares: solving a
+//! loaded campaign for a machine file and comparing a model with a simulation truth.
+//!
+//! - [`machine`]: the machine file; [`plan`]: campaign plans and the simulator set-up.
+//! - [`campaign_csv`]: the campaign interchange format; [`merge`]: joining campaigns.
+//! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
+//! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
+//! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
+//!   message conversions.
+//!
+//! It sits above the core ([`volcal`]) and the simulator ([`volcal_sim`]) and below everything
+//! that knows bags, DDS or Rerun: it must never depend on those.
+
+pub mod campaign_csv;
+pub mod instrument;
+pub mod machine;
+pub mod merge;
+pub mod model_file;
+pub mod plan;
+pub mod report;
+pub mod solving;
+pub mod truth_file;
+
+/// `volcal <version>` for provenance records.
+pub fn software_version() -> String {
+    format!("volcal {}", env!("CARGO_PKG_VERSION"))
+}

@@ -1,0 +1,155 @@
+//! Solving a loaded campaign for a machine file, and what is shared by every place that does
+//! (the `volcal` tool, the replay node, the tests): the model file with its provenance, the
+//! printed summary, the comparison with a simulation truth.
+
+use crate::machine::Machine;
+use crate::model_file::{ModelFile, Provenance};
+use crate::report;
+use anyhow::Result;
+use nalgebra::Vector3;
+use volcal::campaign::{prepare, Campaign, Prepared};
+use volcal::estimator::Solution;
+use volcal::predict;
+use volcal::{gauge, solve, ErrorFunction, ErrorModel};
+
+/// A solved campaign.
+pub struct Solved {
+    pub machine: Machine,
+    pub prepared: Prepared,
+    pub solution: Solution,
+    pub file: ModelFile,
+}
+
+/// Prepares and solves a campaign for a machine. Input warnings go to stderr prefixed by
+/// `source`.
+pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, provenance: Provenance) -> Result<Solved> {
+    let prepared = prepare_campaign(campaign, &machine, source)?;
+    let solution = solve(&machine.layout, &prepared.obs, &machine.solve_options(), &[])
+        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
+    Ok(Solved { machine, prepared, solution, file })
+}
+
+/// The observations of a campaign for `machine`, its warnings printed with `source` (the file
+/// or bag they came from) and errors naming it.
+pub fn prepare_campaign(campaign: &Campaign, machine: &Machine, source: &str) -> Result<Prepared> {
+    let prepared =
+        prepare(campaign, &machine.layout.travel, &machine.expansion).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    for w in &prepared.warnings {
+        eprintln!("warning: {source}: {w}");
+    }
+    Ok(prepared)
+}
+
+/// Distinct probe offsets of a campaign.
+pub fn probe_offsets(c: &Campaign) -> Vec<Vector3<f64>> {
+    let mut v: Vec<Vector3<f64>> = Vec::new();
+    for r in &c.readings {
+        if !v.iter().any(|p| (p - r.p).norm() < 1e-9) {
+            v.push(r.p);
+        }
+    }
+    v
+}
+
+/// The summary printed by `volcal solve` and `volcal report`.
+pub fn summary(model: &ErrorModel, cov: &faer::Mat<f64>, file: &ModelFile, offsets: &[Vector3<f64>]) -> String {
+    let mut out = String::new();
+    out.push_str(&format!(
+        "Machine {}, travel X [{}, {}] Y [{}, {}] Z [{}, {}] m, gauge {}\n",
+        file.topology,
+        file.travel[0][0],
+        file.travel[0][1],
+        file.travel[1][0],
+        file.travel[1][1],
+        file.travel[2][0],
+        file.travel[2][1],
+        file.gauge.name()
+    ));
+    out.push_str(&format!("Representation: {}\n\n", model.layout.describe()));
+    out.push_str(&report::functions_table(model, cov));
+    out.push('\n');
+    let offsets = if offsets.is_empty() { vec![Vector3::zeros()] } else { offsets.to_vec() };
+    out.push_str(&report::max_error_lines(model, cov, &offsets).0);
+    if let Some(r) = &file.residuals {
+        let worst = r.lines.iter().max_by(|a, b| a.rms_m.total_cmp(&b.rms_m));
+        out.push_str(&format!(
+            "\nResiduals: {} readings, RMS {:.4} um, chi2/dof {:.3} ({} dof){}\n",
+            r.n_obs,
+            r.rms_m * 1e6,
+            r.variance_factor,
+            r.dof,
+            worst
+                .map(|w| format!(
+                    "; worst line: station {} {} {} RMS {:.4} um",
+                    w.station,
+                    if w.kind == "beam" { "beam" } else { "path" },
+                    w.line,
+                    w.rms_m * 1e6
+                ))
+                .unwrap_or_default()
+        ));
+    }
+    if !file.stations.is_empty() {
+        for s in &file.stations {
+            out.push_str(&format!(
+                "Station {}: ({:.6}, {:.6}, {:.6}) m +- ({:.1}, {:.1}, {:.1}) um\n",
+                s.station,
+                s.position_m[0],
+                s.position_m[1],
+                s.position_m[2],
+                s.sigma_m[0] * 1e6,
+                s.sigma_m[1] * 1e6,
+                s.sigma_m[2] * 1e6
+            ));
+        }
+    }
+    out.push_str("\nIdentifiability:\n");
+    for s in &file.identifiability.statements {
+        out.push_str(&format!("  {s}\n"));
+    }
+    for w in &file.warnings {
+        out.push_str(&format!("warning: {w}\n"));
+    }
+    out
+}
+
+/// Gauge-aligned comparison of an estimate with simulation truth.
+pub struct TruthComparison {
+    pub rms_m: f64,
+    pub max_m: f64,
+    /// RMS of the predicted standard uncertainty (sqrt of the mean trace of the covariance).
+    pub predicted_rms_m: f64,
+}
+
+/// Compares an estimate with truth over a grid and the given probe offsets, after moving the
+/// truth along the gauge freedoms onto the estimate's gauge. The truth is first projected onto
+/// the estimate's representation when they differ.
+pub fn compare_with_truth(
+    est: &ErrorModel,
+    cov: &faer::Mat<f64>,
+    truth: &ErrorModel,
+    g: volcal::Gauge,
+    offsets: &[Vector3<f64>],
+    step: f64,
+) -> TruthComparison {
+    let mut projected = ErrorModel::zero(est.layout.clone());
+    for f in ErrorFunction::all() {
+        projected.set_function(f, |q| truth.function_value(f, q));
+    }
+    for s in volcal::Squareness::ALL {
+        projected.set_squareness(s, truth.squareness(s));
+    }
+    let aligned = ErrorModel { layout: est.layout.clone(), u: gauge::align(&est.layout, g, &projected.u) };
+    let (mut s2, mut m, mut v2, mut n) = (0.0, 0.0f64, 0.0, 0usize);
+    for x in predict::grid(&est.layout.travel, step) {
+        for p in offsets {
+            let d = (est.error(&x, p) - aligned.error(&x, p)).norm();
+            s2 += d * d;
+            m = m.max(d);
+            v2 += predict::predict(est, cov, &x, p).cov.trace();
+            n += 1;
+        }
+    }
+    TruthComparison { rms_m: (s2 / n as f64).sqrt(), max_m: m, predicted_rms_m: (v2 / n as f64).sqrt() }
+}
