@@ -7,7 +7,7 @@
 //! bag) and the [`provenance`] of a solve (the input's SHA-256 covers a bag's MCAP files).
 
 use crate::convert;
-use crate::{Bag, ReadSummary};
+use crate::reader::{Bag, ReadSummary};
 use anyhow::{anyhow, bail, Result};
 use sha2::{Digest, Sha256};
 use std::path::Path;

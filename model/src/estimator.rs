@@ -1466,8 +1466,10 @@ const NOMINAL_FLOOR: f64 = 1e-10;
 fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], active: &[bool]) -> Vec<f64> {
     use crate::functions::{ErrorFunction, Motion, Squareness};
     let t = &layout.travel;
-    let diag =
-        (t.length(crate::Axis::X).powi(2) + t.length(crate::Axis::Y).powi(2) + t.length(crate::Axis::Z).powi(2)).sqrt();
+    let diag = (t.length(crate::axis::Axis::X).powi(2)
+        + t.length(crate::axis::Axis::Y).powi(2)
+        + t.length(crate::axis::Axis::Z).powi(2))
+    .sqrt();
     let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
     let mut e = vec![0.0; layout.n_params];
     for i in obs.groups.iter().enumerate().filter(|(g, _)| active[*g]).flat_map(|(_, g)| g.range()) {

@@ -213,7 +213,9 @@ pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f6
 mod tests {
     use super::*;
     use crate::functions::ErrorFunction;
-    use crate::{ModelLayout, Representation, Topology};
+    use crate::model::ModelLayout;
+    use crate::repr::Representation;
+    use crate::topology::Topology;
 
     fn paper_travel() -> Travel {
         Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0])

@@ -914,7 +914,7 @@ fn map_change(a: &ErrorModel, b: &ErrorModel, obs: &Observations) -> (f64, f64) 
             offsets.push(*p);
         }
     }
-    let step = crate::Axis::ALL.iter().map(|&ax| a.layout.travel.length(ax)).fold(0.0, f64::max) / 8.0;
+    let step = crate::axis::Axis::ALL.iter().map(|&ax| a.layout.travel.length(ax)).fold(0.0, f64::max) / 8.0;
     let (mut s2, mut m, mut n) = (0.0f64, 0.0f64, 0.0f64);
     for x in predict::grid(&a.layout.travel, step) {
         for p in &offsets {
