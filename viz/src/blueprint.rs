@@ -5,8 +5,8 @@
 use super::error_functions::plot_title;
 use super::layout::{Container, Layout, Node, View};
 use super::paths;
-use rerun::blueprint::components::PanelState;
-use rerun::external::re_sdk_types::blueprint::archetypes as bp;
+use crate::rerun::blueprint::components::PanelState;
+use crate::rerun::external::re_sdk_types::blueprint::archetypes as bp;
 use volcal::{Axis, Motion, Travel};
 
 /// The 3D scene: volume, stations, beams and points, the volumetric map, live state, looked
@@ -95,15 +95,18 @@ pub fn solve(travel: &Travel, hide: impl IntoIterator<Item = String>) -> Layout 
 /// Shows `[from_s, to_s]` of [`paths::CAMPAIGN_TIME`] in a plot, wherever the time cursor is
 /// (a plot of a long campaign otherwise opens on a short window around the cursor).
 pub fn campaign_time_span(view: View, from_s: f64, to_s: f64) -> View {
-    use rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary};
+    use crate::rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary};
     let at = |s: f64| TimeRangeBoundary::Absolute(TimeInt((s * 1e9) as i64));
     let span = TimeRange { start: at(from_s), end: at(to_s) };
-    view.property("TimeAxis", &bp::TimeAxis::new().with_view_range(rerun::blueprint::components::TimeRange(span)))
+    view.property(
+        "TimeAxis",
+        &bp::TimeAxis::new().with_view_range(crate::rerun::blueprint::components::TimeRange(span)),
+    )
 }
 
 /// Shows only the last `seconds` of [`paths::CAMPAIGN_TIME`] before the time cursor.
 pub fn last_seconds(view: View, seconds: f64) -> View {
-    use rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary, VisibleTimeRange};
+    use crate::rerun::external::re_sdk_types::datatypes::{TimeInt, TimeRange, TimeRangeBoundary, VisibleTimeRange};
     let range = VisibleTimeRange {
         timeline: paths::CAMPAIGN_TIME.into(),
         range: TimeRange {

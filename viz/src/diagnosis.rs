@@ -13,8 +13,8 @@ use super::paths::{
     self, effect_signature, DIAGNOSIS_REPORT as REPORT, RESIDUALS_AFTER, RESIDUALS_BEFORE, RMS_AFTER, RMS_BEFORE,
 };
 use super::{blueprint, residuals, solve, RerunArgs};
+use crate::rerun::RecordingStream;
 use anyhow::Result;
-use rerun::RecordingStream;
 use volcal::campaign::Observations;
 use volcal::diagnose::Diagnosis;
 
@@ -95,6 +95,6 @@ pub fn log_diagnosis(rec: &RecordingStream, name: &str, obs: &Observations, d: &
     for (e, signal) in d.effects.iter().zip(&d.signals) {
         residuals::log_line_series(rec, &effect_signature(&e.id), obs, signal, &e.id)?;
     }
-    rec.log_static(REPORT, &rerun::TextDocument::new(report.to_string()))?;
+    rec.log_static(REPORT, &crate::rerun::TextDocument::new(report.to_string()))?;
     Ok(())
 }

@@ -8,8 +8,8 @@
 
 use super::colors;
 use super::paths;
+use crate::rerun::{RecordingStream, TimeColumn};
 use faer::Mat;
-use rerun::{RecordingStream, TimeColumn};
 use volcal::predict::{self, COVERAGE_K};
 use volcal::{Axis, ErrorFunction, ErrorModel, Motion, Squareness};
 
@@ -84,7 +84,7 @@ fn log_with_band(
     let short = name.split(' ').next().unwrap_or(name);
     rec.log_static(
         path,
-        &rerun::SeriesLines::new()
+        &crate::rerun::SeriesLines::new()
             .with_colors([color, colors::faded(color), colors::faded(color)])
             .with_names([name.to_string(), format!("{short} + U (k=2)"), format!("{short} - U (k=2)")])
             .with_widths([2.0, 1.0, 1.0]),
@@ -94,7 +94,7 @@ fn log_with_band(
     rec.send_columns(
         path,
         [TimeColumn::new_sequence(paths::POSITION_MM, pos)],
-        rerun::Scalars::new(values).columns(std::iter::repeat_n(3, q_m.len()))?,
+        crate::rerun::Scalars::new(values).columns(std::iter::repeat_n(3, q_m.len()))?,
     )?;
     Ok(())
 }

@@ -5,14 +5,14 @@
 //! written here from the same archetypes the SDKs use (`view/<id>/<Property>` entities in a
 //! blueprint store), and sent with [`RecordingStream::send_blueprint`].
 
-use rerun::blueprint::components::{
+use crate::rerun::blueprint::components::{
     AutoLayout, AutoViews, ColumnShare, ContainerKind, GridColumns, IncludedContent, PanelState, PlayState,
     QueryExpression, RootContainer, RowShare, TimelineName, ViewClass,
 };
-use rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg};
-use rerun::external::re_sdk_types::blueprint::archetypes as bp;
-use rerun::external::re_sdk_types::components::{Name, Visible};
-use rerun::{AsComponents, RecordingStream, RecordingStreamResult, SerializedComponentBatch};
+use crate::rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg};
+use crate::rerun::external::re_sdk_types::blueprint::archetypes as bp;
+use crate::rerun::external::re_sdk_types::components::{Name, Visible};
+use crate::rerun::{AsComponents, RecordingStream, RecordingStreamResult, SerializedComponentBatch};
 
 /// A container or a view.
 pub enum Node {
@@ -207,7 +207,7 @@ pub struct Layout {
 impl Layout {
     /// Sends the layout to `rec` and makes it the active and default blueprint.
     pub fn send(&self, rec: &RecordingStream, app_id: &'static str) -> anyhow::Result<()> {
-        let (s, storage) = rerun::RecordingStreamBuilder::new(app_id).blueprint().memory()?;
+        let (s, storage) = crate::rerun::RecordingStreamBuilder::new(app_id).blueprint().memory()?;
         s.set_time_sequence("blueprint", 0);
         self.root.log(&s)?;
         s.log(
@@ -254,7 +254,7 @@ mod tests {
             side_panels: PanelState::Collapsed,
             time_panel: PanelState::Collapsed,
         };
-        let (rec, storage) = rerun::RecordingStreamBuilder::new("volcal").memory().unwrap();
+        let (rec, storage) = crate::rerun::RecordingStreamBuilder::new("volcal").memory().unwrap();
         layout.send(&rec, "volcal").unwrap();
         rec.flush_blocking().unwrap();
         let msgs = storage.take();
@@ -268,7 +268,7 @@ mod tests {
             .iter()
             .filter_map(|m| match m {
                 LogMsg::ArrowMsg(id, a) if *id == activation.blueprint_id => {
-                    rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
+                    crate::rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
                 }
                 _ => None,
             })

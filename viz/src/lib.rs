@@ -1,4 +1,4 @@
-//! # Rerun visualisation
+//! # volcal_viz: Rerun visualisation
 //!
 //! What a calibration engineer looks at: the working volume with the stations and beams, the
 //! residuals of the fit (where, how large, per beam), the 18 error functions and squareness
@@ -23,6 +23,7 @@
 //! - [`blueprint`]: default layouts, so that the first screen is useful; [`layout`]: the
 //!   blueprint builder they use.
 //! - [`colors`], [`geometry`]: colour scales; display-only geometric reductions.
+//! - [`rerun`]: the part of the Rerun SDK these use.
 
 pub mod blueprint;
 pub mod colors;
@@ -32,6 +33,7 @@ pub mod geometry;
 pub mod layout;
 pub mod live;
 pub mod paths;
+pub mod rerun;
 pub mod residuals;
 pub mod scene;
 pub mod solve;
@@ -40,7 +42,7 @@ pub mod volumetric;
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
-pub use rerun::RecordingStream;
+pub use crate::rerun::RecordingStream;
 
 /// Rerun application id of everything volcal logs (the viewer groups recordings by it).
 pub const APP_ID: &str = "volcal";
@@ -90,9 +92,9 @@ impl RerunArgs {
             return Ok(None);
         }
         self.validate()?;
-        let mut sinks: Vec<Box<dyn rerun::sink::LogSink>> = Vec::new();
+        let mut sinks: Vec<Box<dyn crate::rerun::sink::LogSink>> = Vec::new();
         if let Some(path) = &self.save {
-            let sink = rerun::sink::FileSink::new(path)
+            let sink = crate::rerun::sink::FileSink::new(path)
                 .with_context(|| format!("--rerun {}: cannot create the recording file", path.display()))?;
             sinks.push(Box::new(sink));
         }
@@ -100,12 +102,12 @@ impl RerunArgs {
             sinks.push(Box::new(grpc_sink(addr).with_context(|| format!("--rerun-connect {addr}"))?));
         }
         if self.spawn {
-            let info = rerun::spawn(&rerun::SpawnOptions::default()).context(
+            let info = crate::rerun::spawn(&crate::rerun::SpawnOptions::default()).context(
                 "--rerun-spawn: cannot start the Rerun viewer (is `rerun` on PATH? `pip install rerun-sdk==0.36.3`)",
             )?;
             sinks.push(Box::new(grpc_sink(&format!("rerun+http://127.0.0.1:{}/proxy", info.port))?));
         }
-        let rec = rerun::RecordingStreamBuilder::new(APP_ID)
+        let rec = crate::rerun::RecordingStreamBuilder::new(APP_ID)
             .recording_name(name)
             .set_sinks(sinks)
             .context("cannot open the Rerun recording")?;
@@ -115,12 +117,12 @@ impl RerunArgs {
 }
 
 /// A gRPC sink towards `addr`, accepting `host:port` as a shorthand for the proxy URL.
-fn grpc_sink(addr: &str) -> Result<rerun::sink::GrpcSink> {
+fn grpc_sink(addr: &str) -> Result<crate::rerun::sink::GrpcSink> {
     let url = if addr.contains("://") { addr.to_string() } else { format!("rerun+http://{addr}/proxy") };
     let uri = url.parse().map_err(|e| {
         anyhow::anyhow!(
             "{url:?} is not a Rerun gRPC address ({e}); expected e.g. {DEFAULT_CONNECT_ADDR} or 127.0.0.1:9876"
         )
     })?;
-    Ok(rerun::sink::GrpcSink::new(uri))
+    Ok(crate::rerun::sink::GrpcSink::new(uri))
 }

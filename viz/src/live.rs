@@ -17,8 +17,8 @@ use super::colors;
 use super::geometry;
 use super::paths;
 use super::scene::{f32p, f32v};
+use crate::rerun::{RecordingStream, TimeColumn};
 use nalgebra::{Point3, Vector3};
-use rerun::{RecordingStream, TimeColumn};
 use std::collections::BTreeMap;
 use volcal::beam::{fit_line, orient_with_readings};
 use volcal::campaign::{LineGroup, ObsKind, Reading, MIN_BEAM_POINTS};
@@ -166,7 +166,7 @@ impl LiveViz {
         if let Some(t) = &travel {
             super::scene::log_machine(&rec, t, machine_name)?;
         } else {
-            rec.log_static("/", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
+            rec.log_static("/", &crate::rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
         }
         Ok(LiveViz {
             rec,
@@ -206,9 +206,9 @@ impl LiveViz {
         self.rec.set_duration_secs(paths::CAMPAIGN_TIME, self.t_s);
         self.rec.log(
             paths::station(state.station),
-            &rerun::Points3D::new([f32p(&state.origin)])
+            &crate::rerun::Points3D::new([f32p(&state.origin)])
                 .with_colors([colors::station(state.station)])
-                .with_radii([rerun::Radius::new_ui_points(7.0)])
+                .with_radii([crate::rerun::Radius::new_ui_points(7.0)])
                 .with_labels([format!("station {}", state.station)]),
         )?;
         let length = self.beam_length(&state);
@@ -323,9 +323,9 @@ impl LiveViz {
                 let r = x + p;
                 self.rec.log(
                     LIVE_CURRENT_POINT,
-                    &rerun::Points3D::new([f32p(&r)])
+                    &crate::rerun::Points3D::new([f32p(&r)])
                         .with_colors([[255u8, 255, 255, 255]])
-                        .with_radii([rerun::Radius::new_ui_points(8.0)])
+                        .with_radii([crate::rerun::Radius::new_ui_points(8.0)])
                         .with_labels([format!("X {:.1} Y {:.1} Z {:.1} mm", x.x * 1e3, x.y * 1e3, x.z * 1e3)]),
                 )?;
             }
@@ -339,10 +339,10 @@ impl LiveViz {
                 let color = colors::deflector(d.settled);
                 self.rec.log(
                     LIVE_DEFLECTOR,
-                    &rerun::Arrows3D::from_vectors([f32v(&(d.direction * len))])
+                    &crate::rerun::Arrows3D::from_vectors([f32v(&(d.direction * len))])
                         .with_origins([f32p(&d.origin)])
                         .with_colors([color])
-                        .with_radii([rerun::Radius::new_ui_points(3.5)])
+                        .with_radii([crate::rerun::Radius::new_ui_points(3.5)])
                         .with_labels([d.describe()]),
                 )?;
             }
@@ -365,9 +365,9 @@ impl LiveViz {
         if line.display_dirty {
             rec.log(
                 format!("{path}/indicated"),
-                &rerun::Points3D::new(line.display.iter().copied())
+                &crate::rerun::Points3D::new(line.display.iter().copied())
                     .with_colors([colors::station(line.group.station)])
-                    .with_radii([rerun::Radius::new_ui_points(1.5)]),
+                    .with_radii([crate::rerun::Radius::new_ui_points(1.5)]),
             )?;
             line.display_dirty = false;
         }
@@ -403,12 +403,12 @@ impl LiveViz {
                 TimeColumn::new_duration_secs(paths::CAMPAIGN_TIME, line.t[new.clone()].iter().copied()),
                 TimeColumn::new_sequence(paths::BEAM_INDEX, std::iter::repeat_n(line.index as i64, count)),
             ],
-            rerun::Scalars::new(r.iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
+            crate::rerun::Scalars::new(r.iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
         )?;
         if line.logged == 0 {
             rec.log_static(
                 paths::line_series(LIVE_RESIDUALS, &line.group).as_str(),
-                &rerun::SeriesPoints::new()
+                &crate::rerun::SeriesPoints::new()
                     .with_colors([colors::station(line.group.station)])
                     .with_names([format!("residual {}", line.group.label())])
                     .with_marker_sizes([1.5]),
@@ -424,9 +424,9 @@ impl LiveViz {
         let ends = geometry::line_extent(&line.points, &c, &n);
         rec.log(
             path.as_str(),
-            &rerun::LineStrips3D::new([ends.map(|p| f32p(&p))])
+            &crate::rerun::LineStrips3D::new([ends.map(|p| f32p(&p))])
                 .with_colors([colors::station(line.group.station)])
-                .with_radii([rerun::Radius::new_ui_points(1.5)])
+                .with_radii([crate::rerun::Radius::new_ui_points(1.5)])
                 .with_labels([format!(
                     "{}: {} points, RMS {:.3} µm",
                     line.group.label(),
@@ -452,11 +452,11 @@ impl LiveViz {
                 .unzip();
             self.rec.log(
                 paths::station_series(LIVE_RESIDUAL_RMS, s),
-                &rerun::BarChart::new(val).with_abscissa(idx).with_color(colors::station(s)),
+                &crate::rerun::BarChart::new(val).with_abscissa(idx).with_color(colors::station(s)),
             )?;
         }
         if let Some(rms) = self.running_rms_m() {
-            self.rec.log(LIVE_RUNNING_RMS, &rerun::Scalars::new([rms * 1e6]))?;
+            self.rec.log(LIVE_RUNNING_RMS, &crate::rerun::Scalars::new([rms * 1e6]))?;
         }
         Ok(())
     }
@@ -502,7 +502,7 @@ impl LiveViz {
             if self.note.is_empty() { String::new() } else { format!("{}\n\n", self.note) },
             self.running_rms_m().map(|r| format!("{:.3} µm", r * 1e6)).unwrap_or_else(|| "-".into()),
         );
-        self.rec.log(LIVE_STATUS, &rerun::TextDocument::from_markdown(text))?;
+        self.rec.log(LIVE_STATUS, &crate::rerun::TextDocument::from_markdown(text))?;
         Ok(())
     }
 }
@@ -547,7 +547,7 @@ mod tests {
 
     #[test]
     fn live_fit_finds_the_noise_and_bounds_what_it_draws() {
-        let (rec, storage) = rerun::RecordingStreamBuilder::new("volcal").memory().unwrap();
+        let (rec, storage) = crate::rerun::RecordingStreamBuilder::new("volcal").memory().unwrap();
         let travel = Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]);
         let mut viz = LiveViz::new(rec, Some(travel), "test").unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
@@ -583,8 +583,8 @@ mod tests {
             .take()
             .iter()
             .filter_map(|m| match m {
-                rerun::log::LogMsg::ArrowMsg(_, a) => {
-                    rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
+                crate::rerun::log::LogMsg::ArrowMsg(_, a) => {
+                    crate::rerun::log::Chunk::from_arrow_msg(a).ok().map(|c| c.entity_path().to_string())
                 }
                 _ => None,
             })

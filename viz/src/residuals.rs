@@ -8,7 +8,7 @@
 use super::colors;
 use super::geometry;
 use super::paths;
-use rerun::{RecordingStream, RecordingStreamResult, TimeColumn};
+use crate::rerun::{RecordingStream, RecordingStreamResult, TimeColumn};
 use volcal::campaign::Observations;
 
 /// Logs `values_m` (one per reading of `obs`, metres) as one point series per line under
@@ -25,7 +25,7 @@ pub fn log_line_series(
         let path = paths::line_series(root, g);
         rec.log_static(
             path.as_str(),
-            &rerun::SeriesPoints::new()
+            &crate::rerun::SeriesPoints::new()
                 .with_colors([colors::station(g.station)])
                 .with_names([format!("{what} {}", g.label())])
                 .with_marker_sizes([1.5]),
@@ -39,7 +39,7 @@ pub fn log_line_series(
                 TimeColumn::new_sequence(paths::POSITION_MM, pos_mm),
                 TimeColumn::new_sequence(paths::BEAM_INDEX, std::iter::repeat_n(k as i64, n)),
             ],
-            rerun::Scalars::new(values_m[g.range()].iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
+            crate::rerun::Scalars::new(values_m[g.range()].iter().map(|v| v * 1e6)).columns_of_unit_batches()?,
         )?;
     }
     Ok(())
@@ -78,7 +78,7 @@ pub fn log_rms_bars(
             .unzip();
         rec.log_static(
             paths::station_series(root, s),
-            &rerun::BarChart::new(val).with_abscissa(idx).with_color(colors::station(s)),
+            &crate::rerun::BarChart::new(val).with_abscissa(idx).with_color(colors::station(s)),
         )?;
     }
     Ok(())

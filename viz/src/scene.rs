@@ -6,8 +6,8 @@
 use super::colors::{self, Rgba};
 use super::geometry;
 use super::paths;
+use crate::rerun::{RecordingStream, RecordingStreamResult};
 use nalgebra::{Point3, Vector3};
-use rerun::{RecordingStream, RecordingStreamResult};
 use volcal::campaign::{LineGroup, ObsKind, Observations};
 use volcal::estimator::GroupStats;
 use volcal::{Axis, ErrorModel, Travel};
@@ -23,7 +23,7 @@ pub(crate) fn f32v(v: &Vector3<f64>) -> [f32; 3] {
 /// Logs the working volume (a wire box labelled with its size) and the X, Y, Z axes along the
 /// travel edges from the lower corner, with the Z-up view convention. Static.
 pub fn log_machine(rec: &RecordingStream, travel: &Travel, name: &str) -> RecordingStreamResult<()> {
-    rec.log_static("/", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
+    rec.log_static("/", &crate::rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
     let lo = travel.min_corner();
     let hi = travel.max_corner();
     let c = travel.centre();
@@ -31,9 +31,9 @@ pub fn log_machine(rec: &RecordingStream, travel: &Travel, name: &str) -> Record
     let mm = |a: Axis| travel.length(a) * 1e3;
     rec.log_static(
         paths::MACHINE_VOLUME,
-        &rerun::Boxes3D::from_centers_and_half_sizes([f32p(&c)], [f32v(&half)])
+        &crate::rerun::Boxes3D::from_centers_and_half_sizes([f32p(&c)], [f32v(&half)])
             .with_colors([[150u8, 150, 150, 255]])
-            .with_radii([rerun::Radius::new_ui_points(0.75)])
+            .with_radii([crate::rerun::Radius::new_ui_points(0.75)])
             .with_labels([format!(
                 "{name}: working volume X {:.0} x Y {:.0} x Z {:.0} mm",
                 mm(Axis::X),
@@ -45,10 +45,10 @@ pub fn log_machine(rec: &RecordingStream, travel: &Travel, name: &str) -> Record
     let axis_colors: [Rgba; 3] = [[230, 80, 70, 255], [90, 200, 90, 255], [80, 140, 240, 255]];
     rec.log_static(
         paths::MACHINE_AXES,
-        &rerun::Arrows3D::from_vectors(Axis::ALL.map(|a| f32v(&(a.unit() * travel.length(a)))))
+        &crate::rerun::Arrows3D::from_vectors(Axis::ALL.map(|a| f32v(&(a.unit() * travel.length(a)))))
             .with_origins([f32p(&lo); 3])
             .with_colors(axis_colors)
-            .with_radii([rerun::Radius::new_ui_points(2.0)])
+            .with_radii([crate::rerun::Radius::new_ui_points(2.0)])
             .with_labels(Axis::ALL.map(|a| format!("{} {:.0} mm", a.letter(), mm(a)))),
     )
 }
@@ -57,12 +57,12 @@ pub fn log_machine(rec: &RecordingStream, travel: &Travel, name: &str) -> Record
 /// convergence points of the beams (fixed-beam devices, see [`station_positions`]).
 pub fn log_stations(rec: &RecordingStream, positions: &[(u32, Point3<f64>, &str)]) -> RecordingStreamResult<()> {
     for (s, p, what) in positions {
-        rec.log_static(format!("{}/kind", paths::station(*s)), &rerun::TextDocument::new(*what))?;
+        rec.log_static(format!("{}/kind", paths::station(*s)), &crate::rerun::TextDocument::new(*what))?;
         rec.log_static(
             paths::station(*s),
-            &rerun::Points3D::new([f32p(p)])
+            &crate::rerun::Points3D::new([f32p(p)])
                 .with_colors([colors::station(*s)])
-                .with_radii([rerun::Radius::new_ui_points(7.0)])
+                .with_radii([crate::rerun::Radius::new_ui_points(7.0)])
                 .with_labels([format!("station {s}")]),
         )?;
     }
@@ -114,9 +114,9 @@ pub fn log_lines(
         };
         rec.log_static(
             path.as_str(),
-            &rerun::LineStrips3D::new([strip])
+            &crate::rerun::LineStrips3D::new([strip])
                 .with_colors([colors::station(g.station)])
-                .with_radii([rerun::Radius::new_ui_points(1.5)])
+                .with_radii([crate::rerun::Radius::new_ui_points(1.5)])
                 .with_labels([line_label(g, &stats[k])])
                 .with_show_labels(false),
         )?;
@@ -142,14 +142,16 @@ fn log_points(
     let col: Vec<Rgba> = g.range().map(|i| colors::signed(residuals[i] / sigmas[i] / 3.0)).collect();
     rec.log_static(
         format!("{path}/indicated"),
-        &rerun::Points3D::new(pts.iter().map(f32p)).with_colors(col).with_radii([rerun::Radius::new_ui_points(1.5)]),
+        &crate::rerun::Points3D::new(pts.iter().map(f32p))
+            .with_colors(col)
+            .with_radii([crate::rerun::Radius::new_ui_points(1.5)]),
     )?;
     let actual = g.range().map(|i| f32p(&(obs.x[i] + obs.p[i] + model.error(&obs.x[i], &obs.p[i]))));
     rec.log_static(
         format!("{path}/actual"),
-        &rerun::Points3D::new(actual)
+        &crate::rerun::Points3D::new(actual)
             .with_colors([[200u8, 200, 200, 255]])
-            .with_radii([rerun::Radius::new_ui_points(1.0)]),
+            .with_radii([crate::rerun::Radius::new_ui_points(1.0)]),
     )
 }
 
@@ -166,8 +168,8 @@ pub fn log_commanded_beam(
     let end = pivot + direction.normalize() * length_m;
     rec.log(
         format!("{}/commanded", paths::beam(station, beam)),
-        &rerun::LineStrips3D::new([[f32p(pivot), f32p(&end)]])
+        &crate::rerun::LineStrips3D::new([[f32p(pivot), f32p(&end)]])
             .with_colors([colors::faded(colors::station(station))])
-            .with_radii([rerun::Radius::new_ui_points(0.5)]),
+            .with_radii([crate::rerun::Radius::new_ui_points(0.5)]),
     )
 }

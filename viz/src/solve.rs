@@ -2,9 +2,9 @@
 //! volumetric map and a summary, with the [`blueprint::solve`] layout.
 
 use super::{blueprint, error_functions, paths, residuals, scene, volumetric, RerunArgs};
+use crate::rerun::RecordingStream;
 use anyhow::Result;
 use nalgebra::Vector3;
-use rerun::RecordingStream;
 use volcal::campaign::{ObsKind, Observations};
 use volcal::estimator::Solution;
 
@@ -41,7 +41,7 @@ pub fn log_solution(
     residuals::log_rms_bars(rec, paths::RESIDUAL_RMS, obs, &solution.residuals)?;
     error_functions::log_error_functions(rec, model, &solution.covariance)?;
     let map = volumetric::log_volumetric_map(rec, model, &solution.covariance, &Vector3::zeros())?;
-    rec.log_static(paths::SUMMARY, &rerun::TextDocument::from_markdown(summary_markdown(obs, solution, &map)))?;
+    rec.log_static(paths::SUMMARY, &crate::rerun::TextDocument::from_markdown(summary_markdown(obs, solution, &map)))?;
     Ok(map)
 }
 

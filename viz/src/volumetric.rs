@@ -6,9 +6,9 @@
 use super::colors;
 use super::paths;
 use super::scene::{f32p, f32v};
+use crate::rerun::{RecordingStream, RecordingStreamResult};
 use faer::Mat;
 use nalgebra::{Point3, Vector3};
-use rerun::{RecordingStream, RecordingStreamResult};
 use volcal::predict::{self, Extremum};
 use volcal::{Axis, ErrorModel};
 
@@ -55,18 +55,18 @@ pub fn log_volumetric_map(
     let origin = |x: &Point3<f64>| f32p(&(x + probe));
     rec.log_static(
         paths::MAP_VOLUMETRIC,
-        &rerun::Arrows3D::from_vectors(errors.iter().map(|e| f32v(&(e * scale))))
+        &crate::rerun::Arrows3D::from_vectors(errors.iter().map(|e| f32v(&(e * scale))))
             .with_origins(grid.iter().map(origin))
             .with_colors(errors.iter().map(|e| colors::magnitude(e.norm() / emax)))
-            .with_radii([rerun::Radius::new_ui_points(2.5)]),
+            .with_radii([crate::rerun::Radius::new_ui_points(2.5)]),
     )?;
     let at = max.at.x;
     rec.log_static(
         paths::MAP_MAX,
-        &rerun::Arrows3D::from_vectors([f32v(&(max.at.e * scale))])
+        &crate::rerun::Arrows3D::from_vectors([f32v(&(max.at.e * scale))])
             .with_origins([origin(&at)])
             .with_colors([[255u8, 255, 255, 255]])
-            .with_radii([rerun::Radius::new_ui_points(4.0)])
+            .with_radii([crate::rerun::Radius::new_ui_points(4.0)])
             .with_labels([format!("max {:.1} µm", max.magnitude_m * 1e6)]),
     )?;
     // Scale bar above the front top edge of the volume, along X, clear of the map's arrows.
@@ -74,10 +74,10 @@ pub fn log_volumetric_map(
     let bar_origin = Point3::new(lo.x, lo.y, hi.z + 0.15 * travel.length(Axis::Z));
     rec.log_static(
         paths::MAP_SCALE,
-        &rerun::Arrows3D::from_vectors([f32v(&(Vector3::x() * scale_bar_m * scale))])
+        &crate::rerun::Arrows3D::from_vectors([f32v(&(Vector3::x() * scale_bar_m * scale))])
             .with_origins([f32p(&bar_origin)])
             .with_colors([[220u8, 220, 220, 255]])
-            .with_radii([rerun::Radius::new_ui_points(3.0)])
+            .with_radii([crate::rerun::Radius::new_ui_points(3.0)])
             .with_labels([format!("scale: {} µm (arrows ×{})", fmt_um(scale_bar_m), scale)]),
     )?;
     Ok(MapInfo { max, scale, scale_bar_m, probe: *probe })
