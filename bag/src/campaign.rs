@@ -46,7 +46,8 @@ pub fn read_bag(path: &Path) -> Result<BagCampaign> {
     })?;
     let note = summary.recovery_note(path);
     if pairs.is_empty() {
-        let topics: Vec<String> = summary.per_topic.iter().map(|(t, c)| format!("{t} ({})", c.count)).collect();
+        let topics: Vec<String> =
+            summary.per_topic.iter().map(|(t, c)| format!("{t} ({}, {} messages)", c.type_name, c.count)).collect();
         bail!(
             "{}: no {} messages ({pair_type}) among {} messages{}{}; was the recorder pairing (is the sequencer running)?",
             path.display(),

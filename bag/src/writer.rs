@@ -3,6 +3,7 @@
 
 use super::metadata::{
     qos_yaml, BagInfo, FileInfo, MetadataFile, Nanoseconds, StartingTime, TopicMetadata, TopicWithCount,
+    WRITTEN_VERSION,
 };
 use anyhow::{bail, Context, Result};
 use ros2_client::qos::QosProfile;
@@ -185,7 +186,7 @@ impl BagWriter {
         let duration = if self.first_ns.is_some() { self.last_ns - start } else { 0 };
         MetadataFile {
             rosbag2_bagfile_information: BagInfo {
-                version: 5,
+                version: WRITTEN_VERSION,
                 storage_identifier: "mcap".into(),
                 duration: Nanoseconds { nanoseconds: duration },
                 starting_time: StartingTime { nanoseconds_since_epoch: start },

@@ -124,7 +124,7 @@ fn duplicated_and_out_of_order_messages_do_not_corrupt_the_pairing() {
     let trig = node.publisher::<Trigger>(topics::TRIGGER, qos::commands()).unwrap();
     let abs = node.publisher::<Abscissa>(topics::ABSCISSA, qos::data()).unwrap();
     let pos = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data()).unwrap();
-    let pairs_sub = node.subscription::<SyncedPair>(topics::PAIRS, qos::data()).unwrap();
+    let mut pairs_sub = node.subscription::<SyncedPair>(topics::PAIRS, qos::data()).unwrap();
     node.wait_for_publishers(&[topics::PAIRS], Duration::from_secs(20)).unwrap();
     // Give the recorder's subscriptions time to match ours.
     let t = Instant::now();
@@ -192,7 +192,7 @@ fn duplicated_and_out_of_order_messages_do_not_corrupt_the_pairing() {
     let t = Instant::now();
     while got < 60 && t.elapsed() < Duration::from_secs(30) {
         node.wait(Duration::from_millis(50));
-        while let Ok(Some(_)) = pairs_sub.take() {
+        while pairs_sub.next().is_some() {
             got += 1;
         }
     }
@@ -209,4 +209,68 @@ fn duplicated_and_out_of_order_messages_do_not_corrupt_the_pairing() {
     }
     assert!(out.contains("duplicated"), "{out}");
     assert!(!out.contains(" 0 duplicated"), "the recorder did not see the duplicates:\n{out}");
+}
+
+/// A message on `/deflector/command` under the right type name that does not decode (a
+/// publisher with another layout): the deflector reports it with topic and reason, skips it,
+/// and still serves the valid command behind it.
+#[test]
+fn an_undecodable_message_is_reported_and_the_node_keeps_going() {
+    use serde::{Deserialize, Serialize};
+    use volcal_msgs::msg::{BeamCommand, BeamState};
+    use volcal_msgs::RosMessage;
+
+    /// One byte where a `BeamCommand` has a header, two ids and five numbers.
+    #[derive(Serialize, Deserialize, Clone, Default, Debug)]
+    struct Malformed {
+        tag: u8,
+    }
+    impl RosMessage for Malformed {
+        const PACKAGE: &'static str = BeamCommand::PACKAGE;
+        const NAME: &'static str = BeamCommand::NAME;
+        const TYPE_NAME: &'static str = BeamCommand::TYPE_NAME;
+        const DEFINITION: &'static str = "uint8 tag\n";
+        const SCHEMA: &'static str = "uint8 tag\n";
+    }
+
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("fault-undecodable");
+    let yaml = "launch:\n  - set_env: {name: ROS_LOCALHOST_ONLY, value: \"1\"}\n  - node: {exec: volcal_deflector, name: deflector}\n";
+    let file = dir.join("deflector.yaml");
+    std::fs::write(&file, yaml).unwrap();
+    let mut l = Launch::start(&file, None, lease.id, &[]);
+    l.wait_for("the deflector", Duration::from_secs(60), |s| s.contains("node deflector on ROS_DOMAIN_ID"));
+
+    let mut node = test_node("bad_commander", lease.id);
+    let bad = node.publisher::<Malformed>(topics::DEFLECTOR_COMMAND, qos::commands()).unwrap();
+    let good = node.publisher::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands()).unwrap();
+    let mut states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched()).unwrap();
+    node.wait_for_publishers(&[topics::DEFLECTOR_STATE], Duration::from_secs(20)).unwrap();
+    // Malformed and valid commands interleaved until the valid one is served (the first ones
+    // may go out before the deflector's subscription has matched the publishers).
+    let cmd = BeamCommand { station: 7, beam: 11, azimuth_rad: 0.1, elevation_rad: -0.05, ..Default::default() };
+    let t = Instant::now();
+    let mut sent_bad = 0u8;
+    let settled = loop {
+        bad.publish(Malformed { tag: sent_bad }).unwrap();
+        sent_bad += 1;
+        good.publish(cmd.clone()).unwrap();
+        node.wait(Duration::from_millis(200));
+        if let Some(s) = std::iter::from_fn(|| states.next()).find(|s| s.station == 7 && s.beam == 11 && s.settled) {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "no settled state for the valid command:\n{}", l.output());
+    };
+    assert!((settled.azimuth_rad - 0.1).abs() < 1e-3, "{settled:?}");
+    let out = l.wait_for("the report of the undecodable messages", Duration::from_secs(10), |s| {
+        s.contains("topic /deflector/command: message does not decode as volcal_msgs/msg/BeamCommand")
+    });
+    l.interrupt();
+    let (_, out2) = l.wait(Duration::from_secs(30));
+    let warned = out2.matches("message does not decode as volcal_msgs/msg/BeamCommand").count();
+    assert!(warned >= 1, "no malformed message reported:\n{out}\n{out2}");
+    assert!(out2.contains("message(s) did not decode as volcal_msgs/msg/BeamCommand"), "no count at the end:\n{out2}");
+    eprintln!(
+        "deflector: {warned} malformed command(s) of {sent_bad} sent reported and skipped, the valid command served"
+    );
 }

@@ -85,11 +85,11 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
         l.contains("published the model on /error_model")
     });
     let mut late = test_node("late_joiner", lease.id);
-    let sub = late.subscription::<ErrorModelMsg>(topics::ERROR_MODEL, qos::latched()).unwrap();
+    let mut sub = late.subscription::<ErrorModelMsg>(topics::ERROR_MODEL, qos::latched()).unwrap();
     let t = Instant::now();
     let msg = loop {
         late.wait(Duration::from_millis(50));
-        if let Ok(Some((m, _))) = sub.take() {
+        if let Some(m) = sub.next() {
             break m;
         }
         assert!(t.elapsed() < Duration::from_secs(30), "no model on /error_model for a late joiner");

@@ -329,15 +329,28 @@ fn say(quiet: bool, msg: &str) {
     }
 }
 
-/// The command that runs a node: its binary next to `volcal`, or else `volcal node EXEC` (the
-/// `volcal` binary contains every node, so `cargo run -- launch ...` works without building
-/// the node binaries).
+/// The command that runs a node: its binary next to `volcal`, or else (no binary, or one older
+/// than `volcal`) `volcal node EXEC` (the `volcal` binary contains every node, so
+/// `cargo run -- launch ...` works without building the node binaries).
 fn node_command(spec: &NodeSpec, dir: &Path) -> Result<Command> {
     let exe = dir.join(&spec.exec);
-    if exe.exists() {
+    let own = std::env::current_exe().ok().filter(|e| e.file_stem().is_some_and(|s| s == "volcal"));
+    // A node binary older than the running `volcal` was left by an earlier build (cargo builds
+    // the node binaries only when asked): the nodes built into `volcal` are the current ones.
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let stale = match (&own, modified(&exe)) {
+        (Some(v), Some(node)) => modified(v).is_some_and(|v| node < v),
+        _ => false,
+    };
+    if exe.exists() && !stale {
         return Ok(Command::new(exe));
     }
-    let own = std::env::current_exe().ok().filter(|e| e.file_stem().is_some_and(|s| s == "volcal"));
+    if stale && own.is_some() && crate::node::by_name(&spec.exec).is_some() {
+        eprintln!(
+            "[launch] note: {} is older than this volcal: running the node built into volcal instead",
+            exe.display()
+        );
+    }
     match (own, crate::node::by_name(&spec.exec)) {
         (Some(volcal), Some(_)) => {
             let mut c = Command::new(volcal);

@@ -26,7 +26,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
 /// The node loop over any backend; `simulated` publishes the truth beam.
 pub fn run_with<B: DeflectorBackend>(node: &mut RosNode, mut backend: B, simulated: bool) -> Result<()> {
     node.warn_unused_parameters();
-    let commands = node.subscription::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands())?;
+    let mut commands = node.subscription::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands())?;
     let state = node.publisher::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
     let truth = if simulated { Some(node.publisher::<BeamState>(topics::TRUTH_BEAM, qos::latched())?) } else { None };
     let mut current: Option<BeamCommand> = None;
@@ -34,7 +34,7 @@ pub fn run_with<B: DeflectorBackend>(node: &mut RosNode, mut backend: B, simulat
     while !shutdown::requested() {
         let until_change = backend.next_change_ns().map(|t| t - now_ns()).filter(|d| *d > 0);
         node.wait(until_change.map_or(TICK, |d| TICK.min(std::time::Duration::from_nanos(d as u64))));
-        while let Ok(Some((c, _))) = commands.take() {
+        while let Some(c) = commands.next() {
             let same = current.as_ref().is_some_and(|o| {
                 (o.station, o.beam, o.azimuth_rad, o.elevation_rad)
                     == (c.station, c.beam, c.azimuth_rad, c.elevation_rad)

@@ -35,9 +35,9 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
         bail!("parameters rate_hz ({rate_hz}) and batch ({batch}) must be non-negative and positive");
     }
     node.warn_unused_parameters();
-    let triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
-    let states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
-    let truth = if backend.simulated() {
+    let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
+    let mut states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
+    let mut truth = if backend.simulated() {
         Some((
             node.subscription::<BeamState>(topics::TRUTH_BEAM, qos::latched())?,
             node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?,
@@ -65,7 +65,7 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     while !shutdown::requested() {
         let wait = if period_ns > 0 { secs((next_sample - now_ns()) as f64 * 1e-9).min(TICK) } else { TICK };
         node.wait(wait);
-        while let Ok(Some((s, _))) = states.take() {
+        while let Some(s) = states.next() {
             let t = s.header.stamp.to_nanos();
             if ids_history.last().is_none_or(|l| l.1 != (s.station, s.beam)) {
                 ids_history.push((t, (s.station, s.beam)));
@@ -75,16 +75,16 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
             }
             backend.new_beam(s.station, s.beam);
         }
-        if let Some((beam, refl)) = &truth {
-            while let Ok(Some((b, _))) = beam.take() {
+        if let Some((beam, refl)) = &mut truth {
+            while let Some(b) = beam.next() {
                 backend.truth(&convert::beam_truth(&b));
             }
-            while let Ok(Some((r, _))) = refl.take() {
+            while let Some(r) = refl.next() {
                 backend.truth(&convert::reflector_truth(&r));
             }
         }
         let now = now_ns();
-        pending.take_from(&triggers, now);
+        pending.take_from(&mut triggers, now);
         pending.service(now, |t| {
             let Some(r) = backend.read(now, Some(t.point), Some(t.position_id))? else { return Ok(false) };
             out.publish(abscissa(now, ids_at(&ids_history, i64::MAX), &r, t.trigger_id))

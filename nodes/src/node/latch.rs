@@ -2,8 +2,8 @@
 //! tracer): a trigger is latched as soon as the backend can read, or dropped with a warning
 //! after the latch timeout (the sequencer then retries with a new trigger).
 
+use crate::ros::Inbox;
 use anyhow::Result;
-use ros2_client::Subscription;
 use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::Trigger;
 
@@ -20,8 +20,8 @@ impl PendingTriggers {
     }
 
     /// Takes the new point and probe triggers of this kind (received at `now_ns`).
-    pub fn take_from(&mut self, sub: &Subscription<Trigger>, now_ns: i64) {
-        while let Ok(Some((t, _))) = sub.take() {
+    pub fn take_from(&mut self, sub: &mut Inbox<Trigger>, now_ns: i64) {
+        while let Some(t) = sub.next() {
             if t.kind == self.kind && (t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE) {
                 self.pending.push((t, now_ns));
             }

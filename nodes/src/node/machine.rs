@@ -50,8 +50,8 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
         bail!("parameters rate_hz ({rate}), idle_rate_hz ({idle_rate}) and batch ({batch}) must be positive");
     }
     node.warn_unused_parameters();
-    let commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
-    let triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
+    let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
+    let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
     let out_batch = if batch > 1 {
         Some(node.publisher::<MachinePositionBatch>(topics::MACHINE_POSITION_BATCH, qos::data())?)
@@ -120,7 +120,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             due = due.min(t);
         }
         node.wait(secs((due - now_ns()) as f64 * 1e-9).min(TICK));
-        while let Ok(Some((c, _))) = commands.take() {
+        while let Some(c) = commands.next() {
             let target = Point3::new(c.x_m, c.y_m, c.z_m);
             let now = now_ns();
             if let Some(l) = &last {
@@ -190,7 +190,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             publish_truth(&mut backend, now)?;
             next_truth = next_truth.max(now - moving_ns) + moving_ns;
         }
-        while let Ok(Some((t, _))) = triggers.take() {
+        while let Some(t) = triggers.next() {
             if t.trigger_type != trigger_type::POINT && t.trigger_type != trigger_type::PROBE {
                 continue;
             }

@@ -10,10 +10,11 @@
 //! (0.3: how long to keep receiving after a stop request).
 
 use super::runtime::{secs, TICK};
-use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
+use crate::ros::Inbox;
+use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, Result};
 use ros2_client::qos::QosProfile;
-use ros2_client::{Publisher, Subscription};
+use ros2_client::Publisher;
 use std::path::PathBuf;
 use std::time::Instant;
 use volcal_bag::convert;
@@ -33,7 +34,7 @@ trait Source {
 struct TopicSource<M: RosMessage> {
     topic: String,
     qos: QosProfile,
-    sub: Subscription<M>,
+    sub: Inbox<M>,
     handle: Option<TopicHandle>,
     stamp: fn(&M) -> i64,
     feed: Feed<M>,
@@ -43,7 +44,7 @@ impl<M: RosMessage> Source for TopicSource<M> {
     fn drain(&mut self, bag: &mut BagWriter, pairer: &mut Pairer, out: &mut Vec<Pair>) -> Result<u64> {
         let mut n = 0;
         let (topic, qos, handle, stamp, feed) = (&self.topic, &self.qos, &mut self.handle, self.stamp, self.feed);
-        take_all(&self.sub, topic, |m| {
+        self.sub.drain(|m| {
             let h = match *handle {
                 Some(h) => h,
                 None => *handle.insert(bag.add_topic::<M>(topic, qos)?),

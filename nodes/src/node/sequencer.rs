@@ -26,10 +26,11 @@
 use super::runtime::secs;
 use crate::backend::sim::LOSS_THRESHOLD;
 use crate::centring::{lateral_basis, vertex, LineFollower};
+use crate::ros::Inbox;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
-use ros2_client::{Publisher, Subscription};
+use ros2_client::Publisher;
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 use volcal_bag::pairing::trigger_type;
@@ -70,12 +71,12 @@ struct Link<'a> {
     machine_cmd: Publisher<MachineCommand>,
     trigger: Publisher<Trigger>,
     status: Publisher<SequencerStatus>,
-    states: Subscription<BeamState>,
-    positions: Subscription<MachinePosition>,
-    position_batches: Subscription<MachinePositionBatch>,
-    abscissae: Subscription<Abscissa>,
-    ranges: Subscription<TracerRange>,
-    pairs: Subscription<SyncedPair>,
+    states: Inbox<BeamState>,
+    positions: Inbox<MachinePosition>,
+    position_batches: Inbox<MachinePositionBatch>,
+    abscissae: Inbox<Abscissa>,
+    ranges: Inbox<TracerRange>,
+    pairs: Inbox<SyncedPair>,
     beam_state: Option<BeamState>,
     reached: Option<(u64, Point3<f64>)>,
     latched_positions: HashMap<u64, Point3<f64>>,
@@ -131,10 +132,10 @@ impl<'a> Link<'a> {
             bail!("stopped by a signal after {} of {} points", self.done, self.total);
         }
         self.node.wait(wait);
-        while let Ok(Some((s, _))) = self.states.take() {
+        while let Some(s) = self.states.next() {
             self.beam_state = Some(s);
         }
-        while let Ok(Some((p, _))) = self.positions.take() {
+        while let Some(p) = self.positions.next() {
             let x = Point3::new(p.x_m, p.y_m, p.z_m);
             if p.trigger_id != 0 {
                 self.latched_positions.insert(p.trigger_id, x);
@@ -142,24 +143,24 @@ impl<'a> Link<'a> {
                 self.reached = Some((p.position_id, x));
             }
         }
-        while let Ok(Some((b, _))) = self.position_batches.take() {
+        while let Some(b) = self.position_batches.next() {
             if b.in_position {
                 if let (Some(x), Some(y), Some(z)) = (b.x_m.last(), b.y_m.last(), b.z_m.last()) {
                     self.reached = Some((b.position_id, Point3::new(*x, *y, *z)));
                 }
             }
         }
-        while let Ok(Some((a, _))) = self.abscissae.take() {
+        while let Some(a) = self.abscissae.next() {
             if a.trigger_id != 0 {
                 self.readings.insert(a.trigger_id, Latched { signal: a.signal_strength });
             }
         }
-        while let Ok(Some((r, _))) = self.ranges.take() {
+        while let Some(r) = self.ranges.next() {
             if r.trigger_id != 0 {
                 self.readings.insert(r.trigger_id, Latched { signal: r.signal_strength });
             }
         }
-        while let Ok(Some((p, _))) = self.pairs.take() {
+        while let Some(p) = self.pairs.next() {
             self.paired.insert(p.trigger_id);
         }
         Ok(())

@@ -27,8 +27,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
 pub fn run_with<B: TracerBackend>(node: &mut RosNode, mut backend: B) -> Result<()> {
     let latch_timeout = (node.args.get_or("latch_timeout_s", 1.0)? * 1e9) as i64;
     node.warn_unused_parameters();
-    let triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
-    let truth = if backend.simulated() {
+    let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
+    let mut truth = if backend.simulated() {
         Some(node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?)
     } else {
         None
@@ -40,13 +40,13 @@ pub fn run_with<B: TracerBackend>(node: &mut RosNode, mut backend: B) -> Result<
     let mut published = 0u64;
     while !shutdown::requested() {
         node.wait(TICK);
-        if let Some(refl) = &truth {
-            while let Ok(Some((r, _))) = refl.take() {
+        if let Some(refl) = &mut truth {
+            while let Some(r) = refl.next() {
                 backend.truth(&convert::reflector_truth(&r));
             }
         }
         let now = now_ns();
-        pending.take_from(&triggers, now);
+        pending.take_from(&mut triggers, now);
         pending.service(now, |t| {
             backend.new_station(t.station);
             let Some(r) = backend.read(now, Some(t.point), Some(t.position_id))? else { return Ok(false) };

@@ -16,7 +16,7 @@
 //! ten seconds are compared in the exit report.
 
 use super::runtime::{secs, TICK};
-use crate::ros::{now_ns, qos, shutdown, take_all, RosNode};
+use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use nalgebra::{Point3, Vector3};
@@ -136,12 +136,12 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     node.warn_unused_parameters();
 
     let d = qos::data;
-    let pairs = node.subscription::<SyncedPair>(topics::PAIRS, d())?;
-    let positions = node.subscription::<MachinePosition>(topics::MACHINE_POSITION, d())?;
-    let batches = node.subscription::<MachinePositionBatch>(topics::MACHINE_POSITION_BATCH, d())?;
-    let commands = node.subscription::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands())?;
-    let states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
-    let status = node.subscription::<SequencerStatus>(topics::SEQUENCER_STATUS, qos::latched())?;
+    let mut pairs = node.subscription::<SyncedPair>(topics::PAIRS, d())?;
+    let mut positions = node.subscription::<MachinePosition>(topics::MACHINE_POSITION, d())?;
+    let mut batches = node.subscription::<MachinePositionBatch>(topics::MACHINE_POSITION_BATCH, d())?;
+    let mut commands = node.subscription::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands())?;
+    let mut states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
+    let mut status = node.subscription::<SequencerStatus>(topics::SEQUENCER_STATUS, qos::latched())?;
 
     let travel = machine.as_ref().map(|m| m.layout.travel);
     let name = machine.as_ref().and_then(|m| m.file.name.clone()).unwrap_or_else(|| "machine".into());
@@ -168,7 +168,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let ts = |ns: i64, t0: i64| (ns - t0) as f64 * 1e-9;
     while !shutdown::requested() {
         node.wait(TICK);
-        take_all(&commands, topics::DEFLECTOR_COMMAND, |m| {
+        commands.drain(|m| {
             let state = DeflectorState {
                 station: m.station,
                 beam: m.beam,
@@ -182,7 +182,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             report.deflector_messages += 1;
             viz.beam_command(ts(m.header.stamp.to_nanos(), t0_ns), state)
         })?;
-        take_all(&states, topics::DEFLECTOR_STATE, |m| {
+        states.drain(|m| {
             let (origin, direction) = if m.geometry_known {
                 (Point3::from(m.origin_m), Vector3::from(m.direction))
             } else {
@@ -204,14 +204,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             );
             Ok(())
         })?;
-        take_all(&positions, topics::MACHINE_POSITION, |m| {
+        positions.drain(|m| {
             let stamp = m.header.stamp.to_nanos();
             machine_lag.add(wall.elapsed().as_secs_f64(), (now_ns() - stamp) as f64 * 1e-6);
             report.machine_samples += 1;
             viz.machine_position(ts(stamp, t0_ns), Point3::new(m.x_m, m.y_m, m.z_m), Vector3::from(m.probe_offset_m));
             Ok(())
         })?;
-        take_all(&batches, topics::MACHINE_POSITION_BATCH, |m| {
+        batches.drain(|m| {
             let n = m.x_m.len().min(m.y_m.len()).min(m.z_m.len());
             if n == 0 {
                 return Ok(());
@@ -224,7 +224,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             viz.machine_position(ts(stamp, t0_ns), x, Vector3::from(m.probe_offset_m));
             Ok(())
         })?;
-        take_all(&pairs, topics::PAIRS, |m| {
+        pairs.drain(|m| {
             let stamp = m.header.stamp.to_nanos();
             if !t0_known {
                 t0_ns = stamp - (m.t_s * 1e9).round() as i64;
@@ -238,7 +238,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             }
             Ok(())
         })?;
-        take_all(&status, topics::SEQUENCER_STATUS, |m| {
+        status.drain(|m| {
             let state = match m.state {
                 SequencerStatus::WAITING => "waiting",
                 SequencerStatus::RUNNING => "running",

@@ -15,4 +15,4 @@ pub mod qos;
 pub mod shutdown;
 
 pub use args::NodeArgs;
-pub use node::{now_ns, take_all, RosNode};
+pub use node::{now_ns, Inbox, RosNode};

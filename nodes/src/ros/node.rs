@@ -13,15 +13,69 @@ use std::net::{IpAddr, Ipv4Addr};
 use std::time::{Duration, Instant};
 use volcal_msgs::RosMessage;
 
-/// Takes every message waiting on `topic`'s subscription `sub` and hands it to `f`; an
-/// undecodable message is logged with the topic's name and skipped, not left to block the ones
-/// behind it.
-pub fn take_all<M: RosMessage>(sub: &Subscription<M>, topic: &str, mut f: impl FnMut(M) -> Result<()>) -> Result<()> {
-    loop {
-        match sub.take() {
-            Ok(Some((m, _))) => f(m)?,
-            Ok(None) => return Ok(()),
-            Err(e) => log::warn!("topic {topic}: a message does not decode as {}: {e:?}", M::type_name()),
+/// A subscription that decodes each message on its own: one that does not decode is counted,
+/// reported with the topic and the reason, and skipped, so the messages behind it still arrive
+/// and the node keeps going. A node's loop drains it with [`Inbox::next`] (or [`Inbox::drain`]).
+pub struct Inbox<M: RosMessage> {
+    sub: Subscription<M>,
+    topic: String,
+    undecodable: u64,
+}
+
+/// Undecodable messages reported one by one; after that, every power of two.
+const REPORT_EACH: u64 = 10;
+
+impl<M: RosMessage> Inbox<M> {
+    /// The next message waiting, if any; undecodable ones on the way are counted and skipped.
+    #[allow(clippy::should_implement_trait)] // not an Iterator: `None` means "none yet"
+    pub fn next(&mut self) -> Option<M> {
+        loop {
+            match self.sub.take() {
+                Ok(Some((m, _))) => return Some(m),
+                Ok(None) => return None,
+                Err(e) => {
+                    self.undecodable += 1;
+                    let n = self.undecodable;
+                    if n <= REPORT_EACH || n.is_power_of_two() {
+                        log::warn!(
+                            "topic {}: message does not decode as {} ({n} so far, skipped): {e:?}",
+                            self.topic,
+                            M::type_name()
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Hands every message waiting to `f`.
+    pub fn drain(&mut self, mut f: impl FnMut(M) -> Result<()>) -> Result<()> {
+        while let Some(m) = self.next() {
+            f(m)?;
+        }
+        Ok(())
+    }
+
+    /// The topic (after remapping).
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    /// Messages skipped because they did not decode.
+    pub fn undecodable(&self) -> u64 {
+        self.undecodable
+    }
+}
+
+impl<M: RosMessage> Drop for Inbox<M> {
+    fn drop(&mut self) {
+        if self.undecodable > 0 {
+            log::warn!(
+                "topic {}: {} message(s) did not decode as {} and were skipped",
+                self.topic,
+                self.undecodable,
+                M::type_name()
+            );
         }
     }
 }
@@ -135,7 +189,7 @@ impl RosNode {
     }
 
     /// A subscription to `M` on `topic` (remapped), waking [`Self::wait`].
-    pub fn subscription<M: RosMessage>(&mut self, topic: &str, qos: QosProfile) -> Result<Subscription<M>> {
+    pub fn subscription<M: RosMessage>(&mut self, topic: &str, qos: QosProfile) -> Result<Inbox<M>> {
         let t = self.topic::<M>(topic, &qos)?;
         let mut s =
             self.node.create_subscription::<M>(&t, Some(qos)).map_err(|e| anyhow!("subscription to {topic}: {e:?}"))?;
@@ -144,7 +198,7 @@ impl RosNode {
             .registry()
             .register(&mut s, Token(self.next_token), Interest::READABLE)
             .with_context(|| format!("cannot poll subscription {topic}"))?;
-        Ok(s)
+        Ok(Inbox { sub: s, topic: self.resolve(topic), undecodable: 0 })
     }
 
     /// Blocks until a subscription has data or `timeout` passes.
