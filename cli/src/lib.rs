@@ -6,6 +6,7 @@
 //!
 //! - [`commands`]: `simulate`, `solve`, `predict`, `map`, `report`, `demo` (the offline half).
 //! - [`diagnosis`]: `volcal diagnose` (the `volcal-diagnosis v1` JSON and the text report).
+//! - [`export_cmd`]: `volcal export` (compensation files a controller loads).
 //! - [`validation`], [`paper_cmd`]: `volcal validate` and `volcal paper` (Han et al. 2021).
 //! - [`launch_cmd`]: `volcal launch`, `volcal bag info`, `volcal report BAG`.
 //! - [`bench`]: `volcal bench` (throughput of the recording chain).
@@ -15,6 +16,7 @@ pub mod bench;
 pub mod commands;
 pub mod demo_chain;
 pub mod diagnosis;
+pub mod export_cmd;
 pub mod launch_cmd;
 pub mod paper_cmd;
 pub mod validation;

@@ -111,6 +111,29 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         #[arg(long)]
         out: PathBuf,
     },
+    /// Write compensation files a controller loads (LinuxCNC COMP_FILEs, a volumetric grid), with a README.txt.
+    #[command(
+        after_help = "Example:\n  volcal export model.json --format linuxcnc --out comp/ --step-mm 10 --point 0.5,0.4,-0.3\n  volcal export model.json --format grid --out grid/ --step-mm 50\n\nREADME.txt in the output directory says how to load the files, what the format drops and the error that remains."
+    )]
+    Export {
+        model: PathBuf,
+        #[arg(long, value_enum)]
+        format: volcal_cli::export_cmd::Format,
+        #[arg(long)]
+        out: PathBuf,
+        /// Node spacing, millimetres (default: linuxcnc 10, grid 50).
+        #[arg(long)]
+        step_mm: Option<f64>,
+        /// Where the other axes stand for each joint's table, x,y,z in metres (machine coordinates; default: the travel's centre).
+        #[arg(long, allow_hyphen_values = true)]
+        point: Option<String>,
+        /// Tool (probe) offset px,py,pz in metres the tables refer to.
+        #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
+        probe: String,
+        /// LinuxCNC COMP_FILE_TYPE: 0 (columns are actual positions) or 1 (columns are offsets).
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=1))]
+        comp_type: u8,
+    },
     /// Print a model's report (or a bag's: what was recorded and paired); optionally write per-axis compensation tables.
     #[command(
         after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101\n  volcal report bags/sim_short          (a bag: topics, pairs, pairing; and model.json if the solver node left one there)"
@@ -307,6 +330,17 @@ fn run() -> anyhow::Result<ExitCode> {
         Command::Map { model, step, probe, out } => {
             let n = commands::map_cmd(&model, step, commands::parse_vec3(&probe)?, &out)?;
             eprintln!("wrote {n} grid points to {}", out.display());
+        }
+        Command::Export { model, format, out, step_mm, point, probe, comp_type } => {
+            use volcal_formats::compensation::CompFileType;
+            let opts = volcal_cli::export_cmd::ExportOptions {
+                format,
+                step_m: step_mm.map(|s| s * 1e-3),
+                point: point.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from),
+                probe: commands::parse_vec3(&probe)?,
+                comp_type: if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual },
+            };
+            print!("{}", volcal_cli::export_cmd::export_cmd(&model, &out, &opts)?);
         }
         Command::Report { model, compensation_dir, points } => {
             if volcal_cli::launch_cmd::is_bag(&model) {

@@ -7,6 +7,7 @@
 //! - [`machine`]: the machine file; [`plan`]: campaign plans and the simulator set-up.
 //! - [`campaign_csv`]: the campaign interchange format; [`merge`]: joining campaigns.
 //! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
+//! - [`compensation`]: compensation tables for controllers (LinuxCNC, a volumetric grid).
 //! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
 //! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
 //!   message conversions.
@@ -15,6 +16,7 @@
 //! that knows bags, DDS or Rerun: it must never depend on those.
 
 pub mod campaign_csv;
+pub mod compensation;
 pub mod instrument;
 pub mod machine;
 pub mod merge;

@@ -1,0 +1,211 @@
+//! Compensation files that controllers load, computed from an identified model.
+//!
+//! - [`linuxcnc`]: LinuxCNC's per-joint `COMP_FILE`s (`[JOINT_n] COMP_FILE_TYPE = 0|1`): each line
+//!   `nominal forward reverse` in machine units (mm), nominal ascending, at most 256 lines; the
+//!   controller interpolates linearly between lines and holds the end values outside.
+//!   `COMP_FILE_TYPE 1`: the columns are the offsets added to the commanded position;
+//!   `COMP_FILE_TYPE 0`: the columns are where the machine actually is when commanded to the
+//!   nominal position (offset = nominal - column).
+//! - [`grid`]: the volumetric error vector and its U95 on a 3-D grid over the working volume,
+//!   for controllers with grid compensation and any tool downstream.
+//!
+//! Sign convention (DESIGN.md): `e = actual - (commanded + probe offset)`. A controller that
+//! adds `offset(q)` to the command `q` lands at `q + offset + e`, so the correction is
+//! `offset = -e`, evaluated at the commanded position.
+
+use anyhow::{bail, Result};
+use faer::Mat;
+use nalgebra::{Point3, Vector3};
+use std::fmt::Write as _;
+use volcal::predict;
+use volcal::{Axis, ErrorModel};
+
+/// LinuxCNC reads at most this many lines of a `COMP_FILE`.
+pub const LINUXCNC_MAX_LINES: usize = 256;
+
+/// How a LinuxCNC table states its correction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompFileType {
+    /// Columns: where the machine actually is at the nominal position.
+    Actual = 0,
+    /// Columns: the offset added to the commanded position.
+    Offset = 1,
+}
+
+/// The positioning correction of one joint along its travel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointTable {
+    pub axis: Axis,
+    /// Nominal (commanded) positions, metres, ascending.
+    pub nominal_m: Vec<f64>,
+    /// Offset to add to the command there, metres (forward and reverse: the model has no
+    /// reversal error, so both are the same).
+    pub offset_m: Vec<f64>,
+}
+
+impl JointTable {
+    /// The offset a controller interpolating this table linearly applies at `q` (end values held
+    /// outside), metres.
+    pub fn offset_at(&self, q: f64) -> f64 {
+        let (x, y) = (&self.nominal_m, &self.offset_m);
+        if q <= x[0] {
+            return y[0];
+        }
+        if q >= x[x.len() - 1] {
+            return y[y.len() - 1];
+        }
+        let i = x.partition_point(|v| *v <= q) - 1;
+        let s = (q - x[i]) / (x[i + 1] - x[i]);
+        y[i] + s * (y[i + 1] - y[i])
+    }
+
+    /// The file text: `nominal forward reverse` in millimetres, one node per line.
+    pub fn linuxcnc_text(&self, kind: CompFileType) -> String {
+        let mut out = String::new();
+        for (q, o) in self.nominal_m.iter().zip(&self.offset_m) {
+            let v = match kind {
+                CompFileType::Offset => o * 1e3,
+                CompFileType::Actual => (q - o) * 1e3,
+            };
+            let _ = writeln!(out, "{:.6} {v:.9} {v:.9}", q * 1e3);
+        }
+        out
+    }
+}
+
+/// The per-joint positioning tables of LinuxCNC: for each axis, its nodes every `step_m` over
+/// the model's travel, with the other axes at `point` (machine coordinates, metres) and the
+/// tool at probe offset `probe`; the correction is minus the error component along the axis.
+pub fn linuxcnc(model: &ErrorModel, step_m: f64, point: &Point3<f64>, probe: &Vector3<f64>) -> Result<Vec<JointTable>> {
+    if !(step_m > 0.0 && step_m.is_finite()) {
+        bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
+    }
+    let travel = model.layout.travel;
+    if !travel.contains(point, 1e-9) {
+        bail!(
+            "--point ({}, {}, {}) m lies outside the identified travel; the tables refer to a point inside it",
+            point.x,
+            point.y,
+            point.z
+        );
+    }
+    let mut tables = Vec::new();
+    for a in Axis::ALL {
+        let [lo, hi] = travel.range(a);
+        let n = ((hi - lo) / step_m).round() as usize + 1;
+        if n > LINUXCNC_MAX_LINES {
+            bail!(
+                "axis {}: {n} nodes at {} mm over {:.1} mm of travel; LinuxCNC reads at most {LINUXCNC_MAX_LINES} lines (use --step-mm {:.3} or more)",
+                a.letter(),
+                step_m * 1e3,
+                (hi - lo) * 1e3,
+                (hi - lo) / (LINUXCNC_MAX_LINES - 1) as f64 * 1e3
+            );
+        }
+        let n = n.max(2);
+        let nominal_m: Vec<f64> = (0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect();
+        let offset_m = nominal_m
+            .iter()
+            .map(|&q| {
+                let mut x = *point;
+                x[a.index()] = q;
+                -model.error(&x, probe)[a.index()]
+            })
+            .collect();
+        tables.push(JointTable { axis: a, nominal_m, offset_m });
+    }
+    Ok(tables)
+}
+
+/// What a set of per-joint tables leaves of the volumetric error, on a grid of `step_m` at probe
+/// offset `probe`: RMS and largest length of the error before and after the correction, metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Residual {
+    pub points: usize,
+    pub rms_before_m: f64,
+    pub max_before_m: f64,
+    pub rms_after_m: f64,
+    pub max_after_m: f64,
+}
+
+/// The error that remains where each joint is corrected by its table alone (what a per-joint
+/// positioning compensation cannot express: straightness, angular errors away from the table's
+/// reference point, squareness).
+pub fn residual(model: &ErrorModel, tables: &[JointTable], step_m: f64, probe: &Vector3<f64>) -> Residual {
+    let (mut s0, mut m0, mut s1, mut m1, mut n) = (0.0, 0.0f64, 0.0, 0.0f64, 0usize);
+    for x in predict::grid(&model.layout.travel, step_m) {
+        let e = model.error(&x, probe);
+        let mut r = e;
+        for t in tables {
+            r[t.axis.index()] += t.offset_at(x[t.axis.index()]);
+        }
+        s0 += e.norm_squared();
+        s1 += r.norm_squared();
+        m0 = m0.max(e.norm());
+        m1 = m1.max(r.norm());
+        n += 1;
+    }
+    let k = n.max(1) as f64;
+    Residual {
+        points: n,
+        rms_before_m: (s0 / k).sqrt(),
+        max_before_m: m0,
+        rms_after_m: (s1 / k).sqrt(),
+        max_after_m: m1,
+    }
+}
+
+/// The volumetric error and its U95 on a grid: `(x, e, u95)` per point, metres.
+pub fn grid(
+    model: &ErrorModel,
+    cov: &Mat<f64>,
+    step_m: f64,
+    probe: &Vector3<f64>,
+) -> Result<Vec<(Point3<f64>, Vector3<f64>, f64)>> {
+    if !(step_m > 0.0 && step_m.is_finite()) {
+        bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
+    }
+    let pts = predict::grid(&model.layout.travel, step_m);
+    if pts.len() > 5_000_000 {
+        bail!("--step-mm {} gives {} grid points; use a coarser step", step_m * 1e3, pts.len());
+    }
+    Ok(pts
+        .into_iter()
+        .map(|x| {
+            let e = model.error(&x, probe);
+            (x, e, predict::predict(model, cov, &x, probe).u95())
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table() -> JointTable {
+        JointTable { axis: Axis::X, nominal_m: vec![0.0, 0.1, 0.2], offset_m: vec![1e-6, 3e-6, -1e-6] }
+    }
+
+    #[test]
+    fn offsets_interpolate_linearly_and_hold_the_ends() {
+        let t = table();
+        assert_eq!(t.offset_at(-1.0), 1e-6);
+        assert!((t.offset_at(0.05) - 2e-6).abs() < 1e-18);
+        assert!((t.offset_at(0.15) - 1e-6).abs() < 1e-18);
+        assert_eq!(t.offset_at(0.3), -1e-6);
+    }
+
+    #[test]
+    fn the_two_file_types_state_the_same_correction() {
+        let t = table();
+        for (l1, l0) in t.linuxcnc_text(CompFileType::Offset).lines().zip(t.linuxcnc_text(CompFileType::Actual).lines())
+        {
+            let f1: Vec<f64> = l1.split(' ').map(|v| v.parse().unwrap()).collect();
+            let f0: Vec<f64> = l0.split(' ').map(|v| v.parse().unwrap()).collect();
+            assert_eq!(f1.len(), 3);
+            // Type 0: offset = nominal - column.
+            assert!((f0[0] - f0[1] - f1[1]).abs() < 1e-9, "{l1} / {l0}");
+            assert_eq!(f1[1], f1[2]);
+        }
+    }
+}
