@@ -2,14 +2,12 @@
 //! (`tests/py/check_compensation.py`: LinuxCNC's three-number lines, at most 256, ascending
 //! nominal) and their values checked against `volcal predict` at the same points.
 
+mod common;
+
+use common::run_volcal as volcal;
 use std::path::Path;
 use std::process::Command;
 use volcal_tests::{checker_python, repo_root, scratch};
-
-fn volcal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_volcal")).args(args).output().expect("volcal runs");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
 
 fn python(py: &Path, args: &[&dyn AsRef<std::ffi::OsStr>]) -> String {
     let out = Command::new(py).arg(repo_root().join("tests/py/check_compensation.py")).args(args).output().unwrap();

@@ -7,14 +7,12 @@
 //! Skipped with a message where LinuxCNC or the sim recipe is absent, unless
 //! `VOLCAL_REQUIRE_LINUXCNC=1` (which `.ci/run` sets after installing it).
 
+mod common;
+
+use common::run_volcal as volcal;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use volcal_tests::{repo_root, scratch};
-
-fn volcal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_volcal")).args(args).output().expect("volcal runs");
-    (out.status.success(), format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr)))
-}
 
 fn sim_dir() -> Option<PathBuf> {
     let required = std::env::var("VOLCAL_REQUIRE_LINUXCNC").is_ok_and(|v| v == "1");
@@ -41,7 +39,7 @@ fn linuxcnc_applies_the_exported_tables_as_the_model_asks() {
     let Some(sim) = sim_dir() else { return };
     let dir = scratch("linuxcnc");
     let model = dir.join("model.json");
-    let (ok, out) = volcal(&[
+    let (ok, _, out) = volcal(&[
         &"solve",
         &repo_root().join("bags/concealed/clean.csv"),
         &"--machine",
@@ -54,7 +52,7 @@ fn linuxcnc_applies_the_exported_tables_as_the_model_asks() {
     for comp_type in ["1", "0"] {
         let tables = dir.join(format!("type{comp_type}"));
         let p = format!("{},{},{}", point[0], point[1], point[2]);
-        let (ok, out) = volcal(&[
+        let (ok, _, out) = volcal(&[
             &"export",
             &model,
             &"--format",
@@ -78,7 +76,7 @@ fn linuxcnc_applies_the_exported_tables_as_the_model_asks() {
         }
         let (points, pred) = (dir.join("x_nodes.csv"), dir.join(format!("pred{comp_type}.csv")));
         std::fs::write(&points, pts).unwrap();
-        let (ok, out) = volcal(&[&"predict", &model, &points, &"--out", &pred]);
+        let (ok, _, out) = volcal(&[&"predict", &model, &points, &"--out", &pred]);
         assert!(ok, "{out}");
         let run = Command::new("/usr/bin/python3")
             .arg(repo_root().join("tests/py/linuxcnc_applies_comp.py"))

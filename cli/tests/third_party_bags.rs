@@ -4,14 +4,12 @@
 //! give on the CSV, and a bag without pairs must be refused with the topics and types it has.
 
 use serde_json::Value;
+mod common;
+
+use common::run_volcal as volcal;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use volcal_tests::{checker_python, repo_root, scratch};
-
-fn volcal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_volcal")).args(args).output().expect("volcal runs");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
 
 /// Writes `csv` as a bag with rosbags (metadata `version`).
 fn rosbags_bag(py: &Path, csv: &Path, out: &Path, version: u32) -> PathBuf {

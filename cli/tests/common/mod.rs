@@ -16,6 +16,12 @@ pub fn volcal() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_volcal"))
 }
 
+/// Runs `volcal ARGS...` to the end: whether it succeeded, its stdout and its stderr.
+pub fn run_volcal(args: &[&dyn AsRef<std::ffi::OsStr>]) -> (bool, String, String) {
+    let out = Command::new(volcal()).args(args).output().expect("volcal runs");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
 pub fn repo() -> PathBuf {
     volcal_tests::repo_root()
 }
