@@ -198,10 +198,10 @@ pub fn text_report(d: &Diagnosis, source: &str, n_readings: usize) -> String {
         out.push_str("\nEffects found, strongest first:\n");
         for (k, e) in d.effects.iter().enumerate() {
             out.push_str(&format!(
-                "{}. {} (evidence {:.1}, p {:.1e}; residual RMS -{:.4} um)\n   {}\n",
+                "{}. {} (evidence {}, p {:.1e}; residual RMS -{:.4} um)\n   {}\n",
                 k + 1,
                 e.id,
-                e.evidence,
+                evidence_text(e.evidence),
                 e.p_value,
                 e.delta_rms_m * 1e6,
                 e.statement
@@ -262,4 +262,26 @@ pub fn diagnose_cmd(campaign_path: &Path, machine_path: &Path, json: Option<&Pat
         file.write(p)?;
     }
     Ok(Diagnosed { file, report: text_report(&d, &source, n), diagnosis: d, obs: prepared.obs })
+}
+
+/// The evidence (a log10 Bayes factor) as printed: one decimal, or in exponent form when the
+/// alternative explains the residual almost entirely and the figure runs to hundreds of digits.
+fn evidence_text(x: f64) -> String {
+    if x.abs() < 1e6 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::evidence_text;
+
+    #[test]
+    fn huge_evidence_stays_short() {
+        assert_eq!(evidence_text(12.345), "12.3");
+        assert_eq!(evidence_text(7.7e305), "7.70e305");
+        assert!(evidence_text(-4.0e9).len() < 12);
+    }
 }
