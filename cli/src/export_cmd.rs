@@ -30,6 +30,33 @@ pub struct ExportOptions {
     /// Tool (probe) offset the tables refer to, metres.
     pub probe: Vector3<f64>,
     pub comp_type: CompFileType,
+    /// A `volcal diagnose --json` file whose `reversal` effect (backlash per axis) splits the
+    /// LinuxCNC columns by direction of travel.
+    pub diagnosis: Option<std::path::PathBuf>,
+}
+
+/// Backlash per axis (metres) from a diagnosis file's `reversal` effect; zero without one.
+fn backlash(diagnosis: Option<&Path>) -> Result<([f64; 3], String)> {
+    let Some(path) = diagnosis else {
+        return Ok(([0.0; 3], "no diagnosis given: the model has no reversal error".into()));
+    };
+    let d = crate::diagnosis::DiagnosisFile::read(path)?;
+    let Some(e) = d.effects.iter().find(|e| e.id == "reversal") else {
+        return Ok(([0.0; 3], format!("{} names no reversal error", path.display())));
+    };
+    let b = ["backlash_x_m", "backlash_y_m", "backlash_z_m"].map(|k| e.parameters.get(k).copied().unwrap_or(0.0));
+    let u = ["backlash_x_m", "backlash_y_m", "backlash_z_m"].map(|k| e.uncertainty.get(k).copied().unwrap_or(0.0));
+    let text = format!(
+        "backlash from {}: X {:.3} +- {:.3} um, Y {:.3} +- {:.3} um, Z {:.3} +- {:.3} um",
+        path.display(),
+        b[0] * 1e6,
+        u[0] * 1e6,
+        b[1] * 1e6,
+        u[1] * 1e6,
+        b[2] * 1e6,
+        u[2] * 1e6
+    );
+    Ok((b, text))
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> Result<()> {
@@ -50,7 +77,8 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         Format::Linuxcnc => {
             let step = opts.step_m.unwrap_or(0.010);
             let point = opts.point.unwrap_or(centre);
-            let tables = compensation::linuxcnc(&model, step, &point, &p)?;
+            let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
+            let tables = compensation::linuxcnc(&model, step, &point, &p, b)?;
             for t in &tables {
                 let name = format!("{}.comp", t.axis.letter().to_ascii_lowercase());
                 write(out, &name, &t.linuxcnc_text(opts.comp_type))?;
@@ -58,11 +86,8 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
             }
             let grid_step = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max) / 10.0;
             let r = compensation::residual(&model, &tables, grid_step, &p);
-            write(
-                out,
-                "README.txt",
-                &linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step),
-            )?;
+            let readme = linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step, &reversal);
+            write(out, "README.txt", &readme)?;
             let _ = writeln!(
                 said,
                 "volumetric error over the volume: RMS {:.3} um, max {:.3} um; after this compensation (positioning only): RMS {:.3} um, max {:.3} um",
@@ -123,6 +148,7 @@ fn linuxcnc_readme(
     p: &Vector3<f64>,
     r: &Residual,
     grid_step: f64,
+    reversal: &str,
 ) -> String {
     format!(
         "LinuxCNC compensation tables written by volcal (machine {topology}).
@@ -141,8 +167,8 @@ Load them in the INI file (joint numbers as in your kinematics; trivkins XYZ: X=
 
 Each line: nominal forward reverse, in millimetres (machine units), nominal ascending, nodes
 evenly spaced about {step_mm} mm apart over the identified travel; LinuxCNC interpolates linearly between nodes and
-holds the end values outside. COMP_FILE_TYPE {t}: {meaning}. Forward and reverse are equal: the
-model has no reversal (backlash) error.
+holds the end values outside. COMP_FILE_TYPE {t}: {meaning}. The forward column is used moving
+up, the reverse column moving down; they differ by the backlash ({reversal}).
 
 What the format expresses: the positioning error of each joint along its own axis, as a function
 of that joint only, taken with the other axes at ({px}, {py}, {pz}) mm and the tool at probe

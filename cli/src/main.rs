@@ -133,6 +133,9 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// LinuxCNC COMP_FILE_TYPE: 0 (columns are actual positions) or 1 (columns are offsets).
         #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=1))]
         comp_type: u8,
+        /// A `volcal diagnose --json` file: its reversal error (backlash) goes into the forward/reverse columns.
+        #[arg(long)]
+        diagnosis: Option<PathBuf>,
     },
     /// Print a model's report (or a bag's: what was recorded and paired); optionally write per-axis compensation tables.
     #[command(
@@ -331,7 +334,7 @@ fn run() -> anyhow::Result<ExitCode> {
             let n = commands::map_cmd(&model, step, commands::parse_vec3(&probe)?, &out)?;
             eprintln!("wrote {n} grid points to {}", out.display());
         }
-        Command::Export { model, format, out, step_mm, point, probe, comp_type } => {
+        Command::Export { model, format, out, step_mm, point, probe, comp_type, diagnosis } => {
             use volcal_formats::compensation::CompFileType;
             let opts = volcal_cli::export_cmd::ExportOptions {
                 format,
@@ -339,6 +342,7 @@ fn run() -> anyhow::Result<ExitCode> {
                 point: point.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from),
                 probe: commands::parse_vec3(&probe)?,
                 comp_type: if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual },
+                diagnosis,
             };
             print!("{}", volcal_cli::export_cmd::export_cmd(&model, &out, &opts)?);
         }

@@ -38,9 +38,12 @@ pub struct JointTable {
     pub axis: Axis,
     /// Nominal (commanded) positions, metres, ascending.
     pub nominal_m: Vec<f64>,
-    /// Offset to add to the command there, metres (forward and reverse: the model has no
-    /// reversal error, so both are the same).
+    /// Offset to add to the command there, metres, without reversal.
     pub offset_m: Vec<f64>,
+    /// Reversal error (backlash) of the joint, metres: moving up, the axis lags by half of it
+    /// behind the command, moving down it leads by half (`volcal_sim`'s `reversal`, the
+    /// diagnosis catalogue's parameter). Zero when unknown.
+    pub backlash_m: f64,
 }
 
 impl JointTable {
@@ -59,15 +62,23 @@ impl JointTable {
         y[i] + s * (y[i + 1] - y[i])
     }
 
+    /// Offsets moving up (forward) and down (reverse) at node `i`: the backlash's half is added
+    /// moving up (the axis lags) and taken off moving down.
+    pub fn directional(&self, i: usize) -> (f64, f64) {
+        let h = 0.5 * self.backlash_m;
+        (self.offset_m[i] + h, self.offset_m[i] - h)
+    }
+
     /// The file text: `nominal forward reverse` in millimetres, one node per line.
     pub fn linuxcnc_text(&self, kind: CompFileType) -> String {
         let mut out = String::new();
-        for (q, o) in self.nominal_m.iter().zip(&self.offset_m) {
-            let v = match kind {
+        for (i, q) in self.nominal_m.iter().enumerate() {
+            let column = |o: f64| match kind {
                 CompFileType::Offset => o * 1e3,
                 CompFileType::Actual => (q - o) * 1e3,
             };
-            let _ = writeln!(out, "{:.6} {v:.9} {v:.9}", q * 1e3);
+            let (f, r) = self.directional(i);
+            let _ = writeln!(out, "{:.6} {:.9} {:.9}", q * 1e3, column(f), column(r));
         }
         out
     }
@@ -75,8 +86,15 @@ impl JointTable {
 
 /// The per-joint positioning tables of LinuxCNC: for each axis, its nodes every `step_m` over
 /// the model's travel, with the other axes at `point` (machine coordinates, metres) and the
-/// tool at probe offset `probe`; the correction is minus the error component along the axis.
-pub fn linuxcnc(model: &ErrorModel, step_m: f64, point: &Point3<f64>, probe: &Vector3<f64>) -> Result<Vec<JointTable>> {
+/// tool at probe offset `probe`; the correction is minus the error component along the axis,
+/// and `backlash_m` (per axis, metres) splits it by direction of travel.
+pub fn linuxcnc(
+    model: &ErrorModel,
+    step_m: f64,
+    point: &Point3<f64>,
+    probe: &Vector3<f64>,
+    backlash_m: [f64; 3],
+) -> Result<Vec<JointTable>> {
     if !(step_m > 0.0 && step_m.is_finite()) {
         bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
     }
@@ -112,7 +130,7 @@ pub fn linuxcnc(model: &ErrorModel, step_m: f64, point: &Point3<f64>, probe: &Ve
                 -model.error(&x, probe)[a.index()]
             })
             .collect();
-        tables.push(JointTable { axis: a, nominal_m, offset_m });
+        tables.push(JointTable { axis: a, nominal_m, offset_m, backlash_m: backlash_m[a.index()] });
     }
     Ok(tables)
 }
@@ -183,7 +201,7 @@ mod tests {
     use super::*;
 
     fn table() -> JointTable {
-        JointTable { axis: Axis::X, nominal_m: vec![0.0, 0.1, 0.2], offset_m: vec![1e-6, 3e-6, -1e-6] }
+        JointTable { axis: Axis::X, nominal_m: vec![0.0, 0.1, 0.2], offset_m: vec![1e-6, 3e-6, -1e-6], backlash_m: 0.0 }
     }
 
     #[test]
@@ -207,5 +225,20 @@ mod tests {
             assert!((f0[0] - f0[1] - f1[1]).abs() < 1e-9, "{l1} / {l0}");
             assert_eq!(f1[1], f1[2]);
         }
+    }
+
+    #[test]
+    fn backlash_splits_the_columns_by_direction() {
+        let t = JointTable { backlash_m: 2e-6, ..table() };
+        let l: Vec<f64> = t
+            .linuxcnc_text(CompFileType::Offset)
+            .lines()
+            .next()
+            .unwrap()
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        // Moving up the axis lags by 1 um: 1 um more offset; moving down 1 um less.
+        assert!((l[1] - 2e-3).abs() < 1e-9 && (l[2] - 0.0).abs() < 1e-9, "{l:?}");
     }
 }

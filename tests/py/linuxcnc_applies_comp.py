@@ -5,17 +5,27 @@ on and between the nodes, up and down, and reads the HAL pins in-process (full d
 `halcmd getp` prints only 1e-5 mm). The correction it applies, joint.0.motor-pos-cmd -
 joint.0.pos-cmd, must equal the one volcal's model asks for: minus the
 predicted error along X, linearly interpolated between the nodes (PRED.csv: `volcal predict` at
-the nodes of x.comp, other axes at the table's reference point).
+the nodes of x.comp, other axes at the table's reference point), plus, with DIAG.json (a
+`volcal diagnose --json` file naming a reversal error), half the X backlash moving up and minus
+half moving down: LinuxCNC uses the forward column moving +X, the reverse column moving -X, and
+holds the last one when stopped.
 
 Run with Debian's /usr/bin/python3 (LinuxCNC's modules live there).
 
-usage: linuxcnc_applies_comp.py SIM_DIR DIR TYPE PRED.csv
+usage: linuxcnc_applies_comp.py SIM_DIR DIR TYPE PRED.csv [DIAG.json]
 """
 import csv
+import json
 import sys
 import time
 
 sim_dir, out_dir, kind, pred_csv = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+backlash_mm = 0.0
+if len(sys.argv) > 5:
+    effects = json.load(open(sys.argv[5]))['effects']
+    rev = [e for e in effects if e['id'] == 'reversal']
+    assert rev, 'the diagnosis names no reversal error'
+    backlash_mm = rev[0]['parameters']['backlash_x_m'] * 1000.0
 sys.path.insert(0, sim_dir)
 from lcnc_sim import LinuxCNCSim  # noqa: E402
 
@@ -47,6 +57,7 @@ moves = up + sorted(up, reverse=True)[1:]
 
 worst = 0.0
 rows = 0
+prev = 0.0  # homed at X 0
 with LinuxCNCSim(comp_file=f'{out_dir}/x.comp', comp_type=kind, quiet=True) as sim:
     sim.machine_on_and_home()
     for t in moves:
@@ -55,10 +66,12 @@ with LinuxCNCSim(comp_file=f'{out_dir}/x.comp', comp_type=kind, quiet=True) as s
         pos = sim.hal_fast('joint.0.pos-cmd')
         motor = sim.hal_fast('joint.0.motor-pos-cmd')
         got = motor - pos
-        want = wanted(pos)
+        up = t > prev
+        prev = t
+        want = wanted(pos) + (0.5 if up else -0.5) * backlash_mm
         worst = max(worst, abs(got - want))
         rows += 1
-        print(f'X {t:9.3f} mm  pos-cmd {pos:10.5f}  applied {got * 1000:9.4f} um  model {want * 1000:9.4f} um')
-print(f'{rows} moves (up and down, on and between nodes): largest difference {worst * 1000:.2e} um')
+        print(f'X {t:9.3f} mm {"up  " if up else "down"} pos-cmd {pos:10.5f}  applied {got * 1000:9.4f} um  model {want * 1000:9.4f} um')
+print(f'{rows} moves (up and down, on and between nodes, backlash {backlash_mm * 1000:.3f} um): largest difference {worst * 1000:.2e} um')
 if worst > 1e-6:
     sys.exit(f'LinuxCNC applies a correction that differs from the model by {worst * 1000:.4f} um')
