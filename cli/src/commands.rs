@@ -48,6 +48,11 @@ pub struct SimulateOptions {
     pub air_rate_k_per_h: Option<f64>,
     /// Record the air with every reading.
     pub record_air: bool,
+    /// A directory of LinuxCNC COMP_FILEs the simulated controller applies, with their type.
+    pub compensation: Option<(PathBuf, volcal_formats::compensation::CompFileType)>,
+    /// Seed of the measurement noise when it should differ from the machine's (`seed` draws
+    /// the machine): the same machine measured again.
+    pub noise_seed: Option<u64>,
 }
 
 /// `volcal simulate`.
@@ -70,10 +75,14 @@ pub fn simulate_cmd(
     let ctx = EffectContext::new(&cfg, machine.layout.travel);
     let specs: Vec<&str> =
         opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
-    let injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
+    let mut injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
+    if let Some((dir, kind)) = &opts.compensation {
+        let c = volcal_formats::compensation::read_linuxcnc(dir, *kind).context("--compensation")?;
+        injections.push(Box::new(c));
+    }
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");
-    let sim = simulate(&cfg, &refs, seed).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let sim = simulate(&cfg, &refs, opts.noise_seed.unwrap_or(seed)).map_err(|e| anyhow::anyhow!("{e}"))?;
     pb.finish_and_clear();
     let notes: Vec<String> =
         if opts.conceal { Vec::new() } else { specs.iter().map(|s| format!("injected: {s}")).collect() };

@@ -54,6 +54,15 @@ enum Command {
         /// Record the air (temperature, pressure, humidity) with every reading.
         #[arg(long)]
         record_air: bool,
+        /// Simulate the machine under a controller applying these LinuxCNC COMP_FILEs (x.comp, y.comp, z.comp from `volcal export --format linuxcnc`): measure the compensated machine.
+        #[arg(long)]
+        compensation: Option<PathBuf>,
+        /// COMP_FILE_TYPE of the --compensation files (0 or 1).
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=1))]
+        comp_type: u8,
+        /// Seed of the measurement noise (default: --seed, which also draws the machine): the same machine measured again with new noise.
+        #[arg(long)]
+        noise_seed: Option<u64>,
     },
     /// Find out why a campaign disagrees with the model: locate the excess residual, name the
     /// physics left out, model it and show the fit improve.
@@ -301,8 +310,30 @@ enum BagCommand {
 fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Simulate { machine, plan, seed, out, truth, inject, conceal, air_rate, record_air } => {
-            let opts = commands::SimulateOptions { inject, conceal, air_rate_k_per_h: air_rate, record_air };
+        Command::Simulate {
+            machine,
+            plan,
+            seed,
+            out,
+            truth,
+            inject,
+            conceal,
+            air_rate,
+            record_air,
+            compensation,
+            comp_type,
+            noise_seed,
+        } => {
+            use volcal_formats::compensation::CompFileType;
+            let kind = if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual };
+            let opts = commands::SimulateOptions {
+                inject,
+                conceal,
+                air_rate_k_per_h: air_rate,
+                record_air,
+                compensation: compensation.map(|d| (d, kind)),
+                noise_seed,
+            };
             commands::simulate_cmd(&machine, plan.as_deref(), seed, &out, truth.as_deref(), &opts)?
         }
         Command::Diagnose { campaign, machine, json, rerun } => {

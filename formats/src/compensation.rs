@@ -13,12 +13,14 @@
 //! adds `offset(q)` to the command `q` lands at `q + offset + e`, so the correction is
 //! `offset = -e`, evaluated at the commanded position.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use faer::Mat;
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
+use std::path::Path;
 use volcal::predict;
 use volcal::{Axis, ErrorModel};
+use volcal_sim::controller::{interpolate, JointCompensation, JointOffsets};
 
 /// LinuxCNC reads at most this many lines of a `COMP_FILE`.
 pub const LINUXCNC_MAX_LINES: usize = 256;
@@ -50,16 +52,7 @@ impl JointTable {
     /// The offset a controller interpolating this table linearly applies at `q` (end values held
     /// outside), metres.
     pub fn offset_at(&self, q: f64) -> f64 {
-        let (x, y) = (&self.nominal_m, &self.offset_m);
-        if q <= x[0] {
-            return y[0];
-        }
-        if q >= x[x.len() - 1] {
-            return y[y.len() - 1];
-        }
-        let i = x.partition_point(|v| *v <= q) - 1;
-        let s = (q - x[i]) / (x[i + 1] - x[i]);
-        y[i] + s * (y[i + 1] - y[i])
+        interpolate(&self.nominal_m, &self.offset_m, q)
     }
 
     /// Offsets moving up (forward) and down (reverse) at node `i`: the backlash's half is added
@@ -133,6 +126,45 @@ pub fn linuxcnc(
         tables.push(JointTable { axis: a, nominal_m, offset_m, backlash_m: backlash_m[a.index()] });
     }
     Ok(tables)
+}
+
+/// Reads the `x.comp`, `y.comp`, `z.comp` of `dir` (those present) as LinuxCNC does (lines of
+/// three numbers `nominal forward reverse` in mm until the first line that is not, at most
+/// [`LINUXCNC_MAX_LINES`]), as the offsets the controller adds to each joint's command.
+pub fn read_linuxcnc(dir: &Path, kind: CompFileType) -> Result<JointCompensation> {
+    let mut joints: [Option<JointOffsets>; 3] = [None, None, None];
+    for (k, a) in ["x", "y", "z"].iter().enumerate() {
+        let path = dir.join(format!("{a}.comp"));
+        if !path.exists() {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let mut j = JointOffsets { nominal_m: Vec::new(), forward_m: Vec::new(), reverse_m: Vec::new() };
+        for line in text.lines().take(LINUXCNC_MAX_LINES) {
+            let v: Vec<f64> = line.split_whitespace().filter_map(|f| f.parse().ok()).collect();
+            if v.len() != 3 || line.split_whitespace().count() != 3 {
+                break; // where LinuxCNC stops reading
+            }
+            let offset = |c: f64| match kind {
+                CompFileType::Offset => c * 1e-3,
+                CompFileType::Actual => (v[0] - c) * 1e-3,
+            };
+            j.nominal_m.push(v[0] * 1e-3);
+            j.forward_m.push(offset(v[1]));
+            j.reverse_m.push(offset(v[2]));
+        }
+        if j.nominal_m.len() < 2 {
+            bail!("{}: fewer than two lines of three numbers (LinuxCNC would ignore the table)", path.display());
+        }
+        if j.nominal_m.windows(2).any(|w| w[1] <= w[0]) {
+            bail!("{}: nominal positions are not ascending", path.display());
+        }
+        joints[k] = Some(j);
+    }
+    if joints.iter().all(|j| j.is_none()) {
+        bail!("{}: no x.comp, y.comp or z.comp", dir.display());
+    }
+    Ok(JointCompensation { joints })
 }
 
 /// What a set of per-joint tables leaves of the volumetric error, on a grid of `step_m` at probe

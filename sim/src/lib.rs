@@ -9,6 +9,7 @@
 //! [`simulate::simulate`] runs a whole campaign offline; the ROS 2 sim nodes drive the same
 //! components step by step. Everything is deterministic for a given seed.
 
+pub mod controller;
 pub mod effects;
 pub mod inject;
 pub mod instruments;
