@@ -10,6 +10,10 @@
 //! The writer closes a chunk at least every flush period (0.5 s by default) and rewrites
 //! `metadata.yaml` then, so a recorder killed with SIGKILL leaves a bag readable up to its last
 //! complete chunk; the reader says how much it recovered.
+//!
+//! Also here: [`pairing`] (the recorder's core: readings and coordinates into synchronised
+//! pairs), [`convert`] (messages <-> core types and pairing events) and [`campaign`] (a bag's
+//! pairs as a campaign; any campaign file with its provenance).
 
 pub mod campaign;
 pub mod convert;
@@ -20,7 +24,3 @@ pub mod writer;
 
 pub use reader::{Bag, MessageRef, ReadSummary};
 pub use writer::{BagWriter, TopicHandle};
-
-// What else lives here: [`pairing`] (the recorder's core: readings and coordinates into
-// synchronised pairs), [`convert`] (messages <-> core types and pairing events) and
-// [`campaign`] (a bag's pairs as a campaign; any campaign file with its provenance).

@@ -44,18 +44,22 @@ fn backlash(diagnosis: Option<&Path>) -> Result<([f64; 3], String)> {
     let Some(e) = d.effects.iter().find(|e| e.id == "reversal") else {
         return Ok(([0.0; 3], format!("{} names no reversal error", path.display())));
     };
-    let b = ["backlash_x_m", "backlash_y_m", "backlash_z_m"].map(|k| e.parameters.get(k).copied().unwrap_or(0.0));
-    let u = ["backlash_x_m", "backlash_y_m", "backlash_z_m"].map(|k| e.uncertainty.get(k).copied().unwrap_or(0.0));
-    let text = format!(
-        "backlash from {}: X {:.3} +- {:.3} um, Y {:.3} +- {:.3} um, Z {:.3} +- {:.3} um",
-        path.display(),
-        b[0] * 1e6,
-        u[0] * 1e6,
-        b[1] * 1e6,
-        u[1] * 1e6,
-        b[2] * 1e6,
-        u[2] * 1e6
-    );
+    let value = |m: &std::collections::BTreeMap<String, f64>, a: &str| {
+        m.get(&format!("backlash_{a}_m")).copied().unwrap_or(0.0)
+    };
+    let b = ["x", "y", "z"].map(|a| value(&e.parameters, a));
+    let each: Vec<String> = ["x", "y", "z"]
+        .iter()
+        .map(|a| {
+            format!(
+                "{} {:.3} +- {:.3} um",
+                a.to_uppercase(),
+                value(&e.parameters, a) * 1e6,
+                value(&e.uncertainty, a) * 1e6
+            )
+        })
+        .collect();
+    let text = format!("backlash from {}: {}", path.display(), each.join(", "));
     Ok((b, text))
 }
 

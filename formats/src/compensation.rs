@@ -141,10 +141,10 @@ pub fn read_linuxcnc(dir: &Path, kind: CompFileType) -> Result<JointCompensation
         let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
         let mut j = JointOffsets { nominal_m: Vec::new(), forward_m: Vec::new(), reverse_m: Vec::new() };
         for line in text.lines().take(LINUXCNC_MAX_LINES) {
-            let v: Vec<f64> = line.split_whitespace().filter_map(|f| f.parse().ok()).collect();
-            if v.len() != 3 || line.split_whitespace().count() != 3 {
-                break; // where LinuxCNC stops reading
-            }
+            let v = match line.split_whitespace().map(str::parse).collect::<Result<Vec<f64>, _>>() {
+                Ok(v) if v.len() == 3 => v,
+                _ => break, // where LinuxCNC stops reading
+            };
             let offset = |c: f64| match kind {
                 CompFileType::Offset => c * 1e-3,
                 CompFileType::Actual => (v[0] - c) * 1e-3,

@@ -334,35 +334,35 @@ fn say(quiet: bool, msg: &str) {
 /// `cargo run -- launch ...` works without building the node binaries).
 fn node_command(spec: &NodeSpec, dir: &Path) -> Result<Command> {
     let exe = dir.join(&spec.exec);
-    let own = std::env::current_exe().ok().filter(|e| e.file_stem().is_some_and(|s| s == "volcal"));
+    let built_in = std::env::current_exe()
+        .ok()
+        .filter(|e| e.file_stem().is_some_and(|s| s == "volcal") && crate::node::by_name(&spec.exec).is_some());
     // A node binary older than the running `volcal` was left by an earlier build (cargo builds
     // the node binaries only when asked): the nodes built into `volcal` are the current ones.
     let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    let stale = match (&own, modified(&exe)) {
+    let stale = match (&built_in, modified(&exe)) {
         (Some(v), Some(node)) => modified(v).is_some_and(|v| node < v),
         _ => false,
     };
     if exe.exists() && !stale {
         return Ok(Command::new(exe));
     }
-    if stale && own.is_some() && crate::node::by_name(&spec.exec).is_some() {
+    let Some(volcal) = built_in else {
+        bail!(
+            "node {}: executable {} not found (build the node binaries: cargo build -p volcal_nodes --bins; or set VOLCAL_NODE_DIR)",
+            spec.name,
+            exe.display()
+        )
+    };
+    if stale {
         eprintln!(
             "[launch] note: {} is older than this volcal: running the node built into volcal instead",
             exe.display()
         );
     }
-    match (own, crate::node::by_name(&spec.exec)) {
-        (Some(volcal), Some(_)) => {
-            let mut c = Command::new(volcal);
-            c.arg("node").arg(&spec.exec);
-            Ok(c)
-        }
-        _ => bail!(
-            "node {}: executable {} not found (build the node binaries: cargo build -p volcal_nodes --bins; or set VOLCAL_NODE_DIR)",
-            spec.name,
-            exe.display()
-        ),
-    }
+    let mut c = Command::new(volcal);
+    c.arg("node").arg(&spec.exec);
+    Ok(c)
 }
 
 fn spawn(spec: &NodeSpec, dir: &Path, env: &BTreeMap<String, String>) -> Result<Child> {

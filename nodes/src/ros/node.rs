@@ -55,16 +55,6 @@ impl<M: RosMessage> Inbox<M> {
         }
         Ok(())
     }
-
-    /// The topic (after remapping).
-    pub fn topic(&self) -> &str {
-        &self.topic
-    }
-
-    /// Messages skipped because they did not decode.
-    pub fn undecodable(&self) -> u64 {
-        self.undecodable
-    }
 }
 
 impl<M: RosMessage> Drop for Inbox<M> {
