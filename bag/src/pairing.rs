@@ -91,6 +91,7 @@ pub struct Pair {
     pub method: Method,
     /// Trigger: |reading stamp - machine stamp|; interpolation: the bracketing interval. Seconds.
     pub gap_s: f64,
+    /// Trigger pairing: the point's trigger; interpolation: the trigger that ended the segment.
     pub trigger_id: u64,
     pub environment: Option<EnvironmentEvent>,
 }
@@ -137,6 +138,9 @@ struct Segment {
     line: u32,
     start_ns: i64,
     end_ns: Option<i64>,
+    /// The id of the SEGMENT_END trigger; the segment's pairs carry it, so that the sequencer
+    /// learns from the first of them that the recorder has closed the segment.
+    end_trigger: u64,
     next_point: u32,
 }
 
@@ -224,13 +228,16 @@ impl Pairer {
                         line: t.line,
                         start_ns: t.stamp_ns,
                         end_ns: None,
+                        end_trigger: 0,
                         next_point: 0,
                     };
                     // An end that overtook its start.
                     if let Some(i) = self.orphan_ends.iter().position(|e| {
                         (e.kind, e.station, e.line) == (t.kind, t.station, t.line) && e.stamp_ns >= t.stamp_ns
                     }) {
-                        seg.end_ns = Some(self.orphan_ends.remove(i).stamp_ns);
+                        let end = self.orphan_ends.remove(i);
+                        seg.end_ns = Some(end.stamp_ns);
+                        seg.end_trigger = end.id;
                     }
                     self.segments.push(seg);
                 } else if let Some(seg) = self.segments.iter_mut().rev().find(|s| {
@@ -239,6 +246,7 @@ impl Pairer {
                         && s.start_ns <= t.stamp_ns
                 }) {
                     seg.end_ns = Some(t.stamp_ns);
+                    seg.end_trigger = t.id;
                 } else {
                     self.orphan_ends.push(t);
                 }
@@ -452,6 +460,7 @@ impl Pairer {
             }
             let seg = &mut self.segments[si];
             let point = seg.next_point;
+            let segment_end = seg.end_trigger;
             seg.next_point += 1;
             self.paired_free.insert(k, ());
             self.stats.interpolated_pairs += 1;
@@ -468,7 +477,7 @@ impl Pairer {
                 beam_broken: r.beam_broken,
                 method: Method::Interpolated,
                 gap_s: gap as f64 * 1e-9,
-                trigger_id: 0,
+                trigger_id: segment_end,
                 environment: self.environment_at(r.stamp_ns),
             });
         }

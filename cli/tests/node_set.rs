@@ -197,6 +197,7 @@ fn on_the_fly_pairs_match_the_simulated_truth_at_their_stamps() {
     let (st, out) = Launch::start(&launch_config("sim_campaign_short.yaml"), Some(&bag), lease.id, &args)
         .wait(Duration::from_secs(240));
     assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 4 on-the-fly segments"), "{out}");
     let machine = Machine::load(&repo().join("launch_configs/machines/demo_cmm.yaml")).unwrap();
     let truth = sim_config(&machine, Plan::default(), 1).machine.truth;
     let mut beams = std::collections::HashMap::new();
@@ -217,6 +218,7 @@ fn on_the_fly_pairs_match_the_simulated_truth_at_their_stamps() {
     let mut by_line: std::collections::BTreeMap<u32, Vec<f64>> = Default::default();
     for p in &pairs {
         assert_eq!(p.pairing, volcal_msgs::msg::SyncedPair::PAIRING_INTERPOLATED);
+        assert_ne!(p.trigger_id, 0, "an interpolated pair names the trigger that ended its segment");
         let (o, d) = beams[&p.line];
         let actual = truth.exact_position(&Point3::from(p.position_m), &Vector3::from(p.probe_offset_m));
         by_line.entry(p.line).or_default().push(p.l_m - d.dot(&(actual - o)));

@@ -7,7 +7,11 @@
 //! (machine clock minus instrument clock, 0), `max_gap_s` (largest machine-sample interval for
 //! interpolation, 0.05), `horizon_s` (how long incomplete pairs wait, 10), `publish_pairs`
 //! (true), `record_truth` (false: the simulation truth topics are not recorded), `drain_s`
-//! (0.3: how long to keep receiving after a stop request).
+//! (0.3) and `drain_max_s` (5): after a stop request the recorder keeps receiving until no
+//! message has arrived for `drain_s`, for at most `drain_max_s`. The launch stops every node at
+//! once, so the last on-the-fly segment's readings, machine samples and end trigger may still be
+//! queued for the recorder when the stop arrives (on a loaded machine, for more than 0.3 s);
+//! stopping on silence rather than after a fixed time keeps them in the bag and in the pairs.
 
 use super::runtime::{secs, TICK};
 use crate::ros::Inbox;
@@ -96,6 +100,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let publish_pairs: bool = node.args.get_or("publish_pairs", true)?;
     let record_truth: bool = node.args.get_or("record_truth", false)?;
     let drain = secs(node.args.get_or("drain_s", 0.3)?);
+    let drain_max = secs(node.args.get_or("drain_max_s", 5.0)?);
     node.warn_unused_parameters();
 
     let mut writer = BagWriter::create(&bag, secs(flush))?;
@@ -217,17 +222,26 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         }
         Ok(())
     };
-    let mut stop_at: Option<Instant> = None;
+    // After a stop request: (when it came, when the last message arrived).
+    let mut stopping: Option<(Instant, Instant)> = None;
     loop {
-        if stop_at.is_none() && shutdown::requested() {
-            stop_at = Some(Instant::now() + drain);
+        if stopping.is_none() && shutdown::requested() {
+            stopping = Some((Instant::now(), Instant::now()));
         }
-        if stop_at.is_some_and(|s| Instant::now() >= s) {
-            break;
+        if let Some((asked, last)) = stopping {
+            if last.elapsed() >= drain || asked.elapsed() >= drain_max {
+                break;
+            }
         }
         node.wait(TICK);
+        let mut received = 0;
         for s in sources.iter_mut() {
-            s.drain(&mut writer, &mut pairer, &mut out)?;
+            received += s.drain(&mut writer, &mut pairer, &mut out)?;
+        }
+        if let Some((_, last)) = stopping.as_mut() {
+            if received > 0 {
+                *last = Instant::now();
+            }
         }
         write_pairs(&mut out, &mut writer)?;
         writer.flush_if_due()?;

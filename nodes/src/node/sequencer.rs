@@ -15,7 +15,8 @@
 //! Every request is retried when its answer does not come within `response_timeout_s`, so a
 //! node restarted mid-campaign is picked up again. Required topics that have no publisher
 //! after `topic_timeout_s` are reported by name. At the end the sequencer waits until the
-//! recorder has paired every acquired point (`/campaign/pairs`), then exits, which ends a
+//! recorder has paired every acquired point, and closed every on-the-fly segment (its pairs carry
+//! the segment's end trigger), on `/campaign/pairs`; then it exits, which ends a
 //! `volcal launch` whose sequencer has `on_exit: shutdown`.
 //!
 //! Parameters: `machine`, `plan` (default: the patent's example), `speed_mps`, `dwell_s`,
@@ -410,7 +411,10 @@ impl<'a> Link<'a> {
             let kind = Trigger::KIND_BEAM;
             self.send_trigger(trigger_type::SEGMENT_START, kind, task.station, task.beam, 0, pos)?;
             let pos = self.move_to(c1, &p, self.settings.speed_mps)?;
-            self.send_trigger(trigger_type::SEGMENT_END, kind, task.station, task.beam, 0, pos)?;
+            // The recorder's pairs of this segment carry this id: the campaign waits for them
+            // as it waits for the static points' pairs.
+            let end = self.send_trigger(trigger_type::SEGMENT_END, kind, task.station, task.beam, 0, pos)?;
+            acquired.push(end);
             self.done += task.abscissae.len() as u32;
             return Ok(());
         }
@@ -470,6 +474,17 @@ pub fn required_topics(method: Method, wait_for_recorder: bool) -> Vec<&'static 
     v
 }
 
+/// The topics that the recorder needs from the start of the campaign to pair its points: what
+/// the sequencer sends and what the instruments answer.
+fn recorded_topics(method: Method) -> Vec<&'static str> {
+    let mut v = vec![topics::TRIGGER, topics::MACHINE_COMMAND, topics::MACHINE_POSITION];
+    match method {
+        Method::FixedBeam => v.extend([topics::DEFLECTOR_COMMAND, topics::ABSCISSA]),
+        Method::Tracer => v.push(topics::TRACER_RANGE),
+    }
+    v
+}
+
 pub fn run(node: &mut RosNode) -> Result<()> {
     let args = &node.args;
     let machine = match args.path("machine")? {
@@ -521,6 +536,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         let _ = link.status(SequencerStatus::FAILED, 0, 0, &format!("{e}"));
         return Err(e);
     }
+    if wait_for_recorder {
+        // The recorder must hear the first trigger and command as well as the last.
+        let recorded = recorded_topics(plan.method);
+        if let Err(e) = link.node.wait_for_readers(&recorded, topics::PAIRS, topic_timeout) {
+            let _ = link.status(SequencerStatus::FAILED, 0, 0, &format!("{e}"));
+            return Err(e);
+        }
+    }
     log::info!(
         "plan {plan_name}: {} {}, {total} points, {}",
         if beams.is_empty() { paths.len() } else { beams.len() },
@@ -563,10 +586,11 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             link.pump(Duration::from_millis(10))?;
         }
         let m = missing(&link);
+        let what = if on_the_fly { "on-the-fly segments" } else { "acquired points" };
         if m > 0 {
-            log::warn!("the recorder has not confirmed {m} of {} acquired points", acquired.len());
+            log::warn!("the recorder has not confirmed {m} of {} {what}", acquired.len());
         } else {
-            log::info!("the recorder confirmed all {} acquired points", acquired.len());
+            log::info!("the recorder confirmed all {} {what}", acquired.len());
         }
     }
     Ok(())

@@ -225,6 +225,56 @@ impl RosNode {
         }
     }
 
+    /// Waits until every participant that publishes `of` (e.g. the recorder, found by its
+    /// `/campaign/pairs` publisher) has a subscription on each of `topics` that this node's
+    /// participant has discovered; after `timeout`, names the topics still missing.
+    ///
+    /// Why: reliable, volatile topics reach only the readers that the writer has matched when it
+    /// writes. A node that starts acquiring as soon as the recorder's publisher is visible can
+    /// otherwise send its first triggers and commands before the recorder's readers are known,
+    /// and the recorder silently lacks them (seen under load: 178 of 960 points). RustDDS
+    /// matches a local writer to a remote reader when that reader's SEDP announcement arrives,
+    /// which is what the discovered-readers table records.
+    pub fn wait_for_readers(&mut self, topics: &[&str], of: &str, timeout: Duration) -> Result<()> {
+        let dp = self._context.domain_participant();
+        let dds_name = |t: &str| format!("rt/{}", self.resolve(t).trim_start_matches('/'));
+        let start = Instant::now();
+        loop {
+            let owners: std::collections::BTreeSet<_> = dp
+                .discovered_writers()
+                .iter()
+                .filter(|w| w.publication_topic_data.topic_name == dds_name(of))
+                .map(|w| w.writer_proxy.remote_writer_guid.prefix)
+                .collect();
+            let readers = dp.discovered_readers();
+            let missing: Vec<String> = topics
+                .iter()
+                .filter(|t| {
+                    let name = dds_name(t);
+                    !owners.iter().all(|o| {
+                        readers.iter().any(|r| {
+                            r.subscription_topic_data.topic_name == name
+                                && r.reader_proxy.remote_reader_guid.prefix == *o
+                        })
+                    })
+                })
+                .map(|t| self.resolve(t))
+                .collect();
+            if !owners.is_empty() && missing.is_empty() {
+                return Ok(());
+            }
+            if start.elapsed() >= timeout || super::shutdown::requested() {
+                bail!(
+                    "the node publishing {} has no subscription to {} after {:.1} s, so it would not record them",
+                    self.resolve(of),
+                    if owners.is_empty() { "anything".to_string() } else { missing.join(", ") },
+                    timeout.as_secs_f64()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Warns about parameters that were given but never read.
     pub fn warn_unused_parameters(&self) {
         for p in self.args.unused() {
