@@ -105,3 +105,29 @@ pub fn gauge_distance(
     (max, (s2 / n as f64).sqrt())
 }
 pub mod diagnosis;
+
+/// A volumetric error field after removing the best-fitting rigid-body motion `t + w x X`: what
+/// remains of it in the machine's own frame, where a rigid motion of the whole volume is not an
+/// error (it is the gauge freedom of the identification seen at one tool point). Returns
+/// `(max, rms)` of the remaining vectors' lengths, metres.
+pub fn rigid_aligned(points: &[Point3<f64>], errors: &[Vector3<f64>]) -> (f64, f64) {
+    // Least squares in (t, w): e ~ t + w x X = t - [X]x w, rows of 3 per point.
+    let c = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len().max(1) as f64;
+    let a = nalgebra::DMatrix::<f64>::from_fn(3 * points.len(), 6, |r, k| {
+        let x = points[r / 3].coords - c;
+        let i = r % 3;
+        if k < 3 {
+            return if i == k { 1.0 } else { 0.0 };
+        }
+        // Column k-3 of -[x]x: the derivative of (w x x)_i by w_(k-3).
+        let mut w = Vector3::zeros();
+        w[k - 3] = 1.0;
+        w.cross(&x)[i]
+    });
+    let b = nalgebra::DVector::<f64>::from_iterator(3 * errors.len(), errors.iter().flat_map(|e| [e.x, e.y, e.z]));
+    let sol = a.clone().svd(true, true).solve(&b, 1e-15).expect("SVD with both factors");
+    let r = b - a * sol;
+    let lengths: Vec<f64> = r.as_slice().chunks(3).map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
+    let max = lengths.iter().cloned().fold(0.0, f64::max);
+    (max, (lengths.iter().map(|v| v * v).sum::<f64>() / lengths.len().max(1) as f64).sqrt())
+}

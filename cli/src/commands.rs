@@ -48,7 +48,8 @@ pub struct SimulateOptions {
     pub air_rate_k_per_h: Option<f64>,
     /// Record the air with every reading.
     pub record_air: bool,
-    /// A directory of LinuxCNC COMP_FILEs the simulated controller applies, with their type.
+    /// A directory of compensation files the simulated controller applies (`grid.csv`: a
+    /// volumetric grid; otherwise LinuxCNC COMP_FILEs, of the given type).
     pub compensation: Option<(PathBuf, volcal_formats::compensation::CompFileType)>,
     /// Seed of the measurement noise when it should differ from the machine's (`seed` draws
     /// the machine): the same machine measured again.
@@ -77,8 +78,14 @@ pub fn simulate_cmd(
         opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
     let mut injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
     if let Some((dir, kind)) = &opts.compensation {
-        let c = volcal_formats::compensation::read_linuxcnc(dir, *kind).context("--compensation")?;
-        injections.push(Box::new(c));
+        // The directory's files say which controller: a volumetric grid, or per-joint tables.
+        let grid = dir.join("grid.csv");
+        if grid.exists() {
+            injections.push(Box::new(volcal_formats::compensation_grid::read_grid(&grid).context("--compensation")?));
+        } else {
+            let c = volcal_formats::compensation::read_linuxcnc(dir, *kind).context("--compensation")?;
+            injections.push(Box::new(c));
+        }
     }
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");

@@ -54,7 +54,7 @@ enum Command {
         /// Record the air (temperature, pressure, humidity) with every reading.
         #[arg(long)]
         record_air: bool,
-        /// Simulate the machine under a controller applying these LinuxCNC COMP_FILEs (x.comp, y.comp, z.comp from `volcal export --format linuxcnc`): measure the compensated machine.
+        /// Simulate the machine under a controller applying the compensation in this directory (from `volcal export`): a volumetric grid (grid.csv, interpolated trilinearly, added to the command) or LinuxCNC COMP_FILEs (x.comp, y.comp, z.comp): measure the compensated machine.
         #[arg(long)]
         compensation: Option<PathBuf>,
         /// COMP_FILE_TYPE of the --compensation files (0 or 1).

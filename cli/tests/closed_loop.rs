@@ -1,7 +1,12 @@
-//! The closed loop of a LinuxCNC compensation: measure the simulated CMM, identify it, export the
-//! per-joint tables, simulate the same machine under a controller applying them
-//! (`volcal simulate --compensation`, new measurement noise), identify it again. The positioning
-//! error along the tables' reference lines must fall to at most 10 % of before on every axis.
+//! The closed loop of a compensation: measure the simulated machine (the patent's CMM and a
+//! machine tool), identify it, export the compensation, and measure the machine under a
+//! controller applying it (`volcal simulate --compensation`).
+//!
+//! - LinuxCNC per-joint tables: the compensated machine is measured with new noise and
+//!   identified again; the positioning error along the tables' reference lines must fall to at
+//!   most 10 % of before on every axis.
+//! - A volumetric grid: the volumetric error at the grid's tool point, rigidly aligned, must
+//!   fall to at most 15 % of before (max over the volume).
 
 mod common;
 
@@ -36,12 +41,11 @@ fn positioning_ranges(model: &Path, dir: &Path, point: [f64; 3], travel: [[f64; 
     out
 }
 
-#[test]
-fn linuxcnc_compensation_removes_the_positioning_errors() {
-    let dir = scratch("closed-loop");
-    let machine = repo_root().join("launch_configs/machines/demo_cmm.yaml");
-    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
-    let point = [0.5, 0.4, -0.3];
+/// The LinuxCNC closed loop on one machine: returns the positioning error ranges along the
+/// reference lines through `point` before and after, metres.
+fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) -> ([f64; 3], [f64; 3]) {
+    let dir = scratch(&format!("closed-loop-{seed}"));
+    let machine = repo_root().join("launch_configs/machines").join(machine);
     let p = format!("{},{},{}", point[0], point[1], point[2]);
     let (c0, m0, comp) = (dir.join("c0.csv"), dir.join("m0.json"), dir.join("comp"));
     let (c1, m1) = (dir.join("c1.csv"), dir.join("m1.json"));
@@ -49,35 +53,137 @@ fn linuxcnc_compensation_removes_the_positioning_errors() {
         let (ok, _, err) = volcal(args);
         assert!(ok, "{err}");
     };
-    run(&[&"simulate", &"--machine", &machine, &"--seed", &"5", &"--out", &c0]);
+    let (s, noise) = (seed.to_string(), (seed + 100).to_string());
+    run(&[&"simulate", &"--machine", &machine, &"--seed", &s, &"--out", &c0]);
     run(&[&"solve", &c0, &"--machine", &machine, &"--out", &m0]);
     run(&[&"export", &m0, &"--format", &"linuxcnc", &"--out", &comp, &"--step-mm", &"20", &"--point", &p]);
-    // The same machine (seed 5), new noise, under the controller's compensation.
+    // The same machine, new noise, under the controller's compensation.
     run(&[
         &"simulate",
         &"--machine",
         &machine,
         &"--seed",
-        &"5",
+        &s,
         &"--noise-seed",
-        &"105",
+        &noise,
         &"--out",
         &c1,
         &"--compensation",
         &comp,
     ]);
     run(&[&"solve", &c1, &"--machine", &machine, &"--out", &m1]);
-    let before = positioning_ranges(&m0, &dir, point, travel);
-    let after = positioning_ranges(&m1, &dir, point, travel);
+    (positioning_ranges(&m0, &dir, point, travel), positioning_ranges(&m1, &dir, point, travel))
+}
+
+fn assert_linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) {
+    let (before, after) = linuxcnc_closed_loop(machine, seed, point, travel);
+    let mut worst = 0.0f64;
     for a in 0..3 {
         let ratio = after[a] / before[a];
+        worst = worst.max(ratio);
         eprintln!(
-            "axis {}: positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
+            "{machine} axis {}: positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
             ["X", "Y", "Z"][a],
             before[a] * 1e6,
             after[a] * 1e6,
             ratio * 100.0
         );
-        assert!(ratio <= 0.10, "axis {a}: {:.1} % of before", ratio * 100.0);
+    }
+    assert!(worst <= 0.10, "{machine}: an axis keeps {:.1} % of its positioning error", worst * 100.0);
+}
+
+#[test]
+fn linuxcnc_compensation_removes_the_positioning_errors() {
+    assert_linuxcnc_closed_loop("demo_cmm.yaml", 5, [0.5, 0.4, -0.3], [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]]);
+}
+
+/// The machine tool's positioning errors are small (X about 10 um over 0.8 m), and the
+/// remeasurement identifies what remains with about 1 um of noise: X stays at 14.1 % (seed 31,
+/// chosen once). Meeting 10 % needs the compensated axis measured directly (ISO 230-2 runs of a
+/// linear interferometer along the line), which the closed loop does not simulate yet.
+#[test]
+#[ignore = "issue 15 open: machine tool X at 14.1 % of before (> 10 %), limited by the remeasurement's identification noise"]
+fn linuxcnc_compensation_of_the_machine_tool() {
+    assert_linuxcnc_closed_loop(
+        "machine_tool_xfyz.yaml",
+        31,
+        [0.4, 0.25, -0.25],
+        [[0.0, 0.8], [0.0, 0.5], [-0.5, 0.0]],
+    );
+}
+
+/// The grid closed loop on one machine: identify, export the volumetric grid at tool point
+/// `tool`, and evaluate the compensated machine's volumetric error at that tool point over the
+/// volume (13 x 13 x 13 points, mostly between the grid's nodes), before and after, both
+/// rigidly aligned. Returns `(max before, max after, rms before, rms after, largest U95 of
+/// the grid)`, metres.
+///
+/// The compensated machine is evaluated on the simulated truth at the tool point (a perfect
+/// measurement), not by identifying it again: a grid corrects one tool point by moving the
+/// three axes, so the tool point no longer carries the Abbe terms of the angular errors while
+/// the angular errors themselves remain, a field that the 21 error functions cannot represent.
+fn grid_closed_loop(machine: &str, seed: u64, tool: [f64; 3]) -> (f64, f64, f64, f64, f64) {
+    use nalgebra::{Point3, Vector3};
+    let dir = scratch(&format!("closed-loop-grid-{seed}"));
+    let machine = repo_root().join("launch_configs/machines").join(machine);
+    let (c0, t0, m0, comp) = (dir.join("c0.csv"), dir.join("t0.json"), dir.join("m0.json"), dir.join("grid"));
+    let run = |args: &[&dyn AsRef<std::ffi::OsStr>]| {
+        let (ok, _, err) = volcal(args);
+        assert!(ok, "{err}");
+    };
+    let s = seed.to_string();
+    let p = format!("{},{},{}", tool[0], tool[1], tool[2]);
+    run(&[&"simulate", &"--machine", &machine, &"--seed", &s, &"--out", &c0, &"--truth", &t0]);
+    run(&[&"solve", &c0, &"--machine", &machine, &"--out", &m0]);
+    run(&[&"export", &m0, &"--format", &"grid", &"--out", &comp, &"--step-mm", &"50", &"--probe", &p]);
+    let truth = volcal_formats::truth_file::TruthFile::load(&t0).unwrap().model.to_model().unwrap().0;
+    let grid = volcal_formats::compensation_grid::read_grid(&comp.join("grid.csv")).unwrap();
+    let u95 = std::fs::read_to_string(comp.join("grid.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() * 1e-6)
+        .fold(0.0, f64::max);
+    let travel = truth.layout.travel;
+    let probe = Vector3::from(tool);
+    let n = 12;
+    let mut points = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            for k in 0..=n {
+                let f = |a: volcal::Axis, t: usize| {
+                    let [lo, hi] = travel.range(a);
+                    lo + (hi - lo) * t as f64 / n as f64
+                };
+                points.push(Point3::new(f(volcal::Axis::X, i), f(volcal::Axis::Y, j), f(volcal::Axis::Z, k)));
+            }
+        }
+    }
+    let before: Vec<Vector3<f64>> = points.iter().map(|x| truth.error(x, &probe)).collect();
+    // The controller adds the grid's correction to the command (volcal_sim::controller).
+    let after: Vec<Vector3<f64>> = points.iter().zip(&before).map(|(x, e)| e + Vector3::from(grid.at(x))).collect();
+    let (b, a) = (volcal_tests::rigid_aligned(&points, &before), volcal_tests::rigid_aligned(&points, &after));
+    (b.0, a.0, b.1, a.1, u95)
+}
+
+#[test]
+fn grid_compensation_removes_the_volumetric_error() {
+    // The patent's CMM (X carries Y carries Z) and a machine tool with the table on X; tool
+    // points as a probe or a tool would stand. Seeds chosen once, never tuned.
+    for (machine, seed, tool) in
+        [("demo_cmm.yaml", 11, [0.0, 0.0, -0.25]), ("machine_tool_xfyz.yaml", 23, [0.0, 0.0, -0.15])]
+    {
+        let (mb, ma, rb, ra, u95) = grid_closed_loop(machine, seed, tool);
+        eprintln!(
+            "{machine}: volumetric error at the tool point, rigidly aligned: max {:.2} um before, {:.2} um after ({:.1} %); RMS {:.2} um before, {:.2} um after ({:.1} %); largest U95 of the grid {:.2} um",
+            mb * 1e6,
+            ma * 1e6,
+            ma / mb * 100.0,
+            rb * 1e6,
+            ra * 1e6,
+            ra / rb * 100.0,
+            u95 * 1e6
+        );
+        assert!(ma <= 0.15 * mb, "{machine}: max after {:.1} % of before", ma / mb * 100.0);
     }
 }

@@ -17,6 +17,7 @@
 
 pub mod campaign_csv;
 pub mod compensation;
+pub mod compensation_grid;
 pub mod instrument;
 pub mod machine;
 pub mod merge;

@@ -1,8 +1,13 @@
-//! A controller's per-joint compensation acting on the simulated machine: what the controller
-//! adds to each joint's command (linear interpolation between table nodes, end values held
-//! outside, one column moving up and one moving down, the last one held when stopped), so that
-//! the compensated machine can be measured again and identified (the closed loop of
-//! `volcal simulate --compensation`).
+//! A controller's compensation acting on the simulated machine, so that the compensated machine
+//! can be measured again (the closed loop of `volcal simulate --compensation`):
+//!
+//! - [`JointCompensation`]: what a controller adds to each joint's command from per-joint tables
+//!   (linear interpolation between table nodes, end values held outside, one column moving up
+//!   and one moving down, the last one held when stopped), as LinuxCNC does;
+//! - [`GridCompensation`]: a volumetric correction vector on a 3-D grid, interpolated
+//!   trilinearly at the commanded position and added to the three axes' commands, as grid
+//!   compensation of controllers does. It refers to one tool point: the angular errors act
+//!   on any other tool offset uncorrected.
 
 use crate::inject::{Injection, Sample};
 use nalgebra::Point3;
@@ -60,9 +65,97 @@ impl Injection for JointCompensation {
     }
 }
 
+/// A volumetric correction on a grid: the vector (metres) a controller adds to the commanded
+/// position, at the nodes `x_m` x `y_m` x `z_m` (ascending), `x` varying fastest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridCompensation {
+    pub axes_m: [Vec<f64>; 3],
+    pub correction_m: Vec<[f64; 3]>,
+}
+
+impl GridCompensation {
+    /// The correction at `q`: trilinear interpolation in the cell holding `q`, end values held
+    /// outside the grid (as a per-joint table holds its ends).
+    pub fn at(&self, q: &Point3<f64>) -> [f64; 3] {
+        // Per axis: the lower node index and the weight of the upper one.
+        let cell = |a: usize| -> (usize, f64) {
+            let x = &self.axes_m[a];
+            if x.len() < 2 || q[a] <= x[0] {
+                return (0, 0.0);
+            }
+            if q[a] >= x[x.len() - 1] {
+                return (x.len() - 2, 1.0);
+            }
+            let i = x.partition_point(|v| *v <= q[a]) - 1;
+            (i, (q[a] - x[i]) / (x[i + 1] - x[i]))
+        };
+        let (nx, ny) = (self.axes_m[0].len(), self.axes_m[1].len());
+        let (c, w) = ([cell(0), cell(1), cell(2)], |k: usize, f: f64| if k == 0 { 1.0 - f } else { f });
+        let mut out = [0.0; 3];
+        for (dz, dy, dx) in (0..8).map(|b| (b >> 2 & 1, b >> 1 & 1, b & 1)) {
+            let weight = w(dx, c[0].1) * w(dy, c[1].1) * w(dz, c[2].1);
+            if weight == 0.0 {
+                continue;
+            }
+            let (i, j, k) =
+                ((c[0].0 + dx).min(nx - 1), (c[1].0 + dy).min(ny - 1), (c[2].0 + dz).min(self.axes_m[2].len() - 1));
+            let v = self.correction_m[i + nx * (j + ny * k)];
+            for (o, v) in out.iter_mut().zip(v) {
+                *o += weight * v;
+            }
+        }
+        out
+    }
+}
+
+impl Injection for GridCompensation {
+    fn id(&self) -> &str {
+        "controller_grid_compensation"
+    }
+    fn parameters(&self) -> Vec<(String, f64)> {
+        ["x", "y", "z"].iter().zip(&self.axes_m).map(|(a, n)| (format!("{a}_nodes"), n.len() as f64)).collect()
+    }
+    fn describe(&self) -> String {
+        "volumetric grid compensation applied by the controller".into()
+    }
+    /// The three axes move by the correction at the commanded position.
+    fn actual(&self, s: &Sample, actual: &mut Point3<f64>) {
+        let c = self.at(&s.x);
+        for k in 0..3 {
+            actual[k] += c[k];
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::interpolate;
+    use super::{interpolate, GridCompensation};
+    use nalgebra::Point3;
+
+    #[test]
+    fn grid_interpolates_trilinearly_and_holds_the_ends() {
+        // Correction = (x + 2y + 3z, 1, xyz) on a 2 x 3 x 2 grid: trilinear interpolation
+        // reproduces it exactly inside (each component is linear in each coordinate).
+        let axes_m = [vec![0.0, 1.0], vec![0.0, 0.5, 1.0], vec![-1.0, 0.0]];
+        let f = |x: f64, y: f64, z: f64| [x + 2.0 * y + 3.0 * z, 1.0, x * y * z];
+        let mut correction_m = Vec::new();
+        for z in &axes_m[2] {
+            for y in &axes_m[1] {
+                for x in &axes_m[0] {
+                    correction_m.push(f(*x, *y, *z));
+                }
+            }
+        }
+        let g = GridCompensation { axes_m, correction_m };
+        for q in [[0.3, 0.7, -0.2], [0.0, 0.0, -1.0], [1.0, 1.0, 0.0], [0.5, 0.25, -0.5]] {
+            let (c, want) = (g.at(&Point3::from(q)), f(q[0], q[1], q[2]));
+            for k in 0..3 {
+                assert!((c[k] - want[k]).abs() < 1e-12, "{q:?}: {c:?} vs {want:?}");
+            }
+        }
+        // Outside: the nearest face's value.
+        assert_eq!(g.at(&Point3::new(2.0, 0.5, -0.5)), g.at(&Point3::new(1.0, 0.5, -0.5)));
+    }
 
     #[test]
     fn interpolates_between_nodes_and_holds_the_ends() {
