@@ -8,6 +8,7 @@ use std::path::Path;
 use volcal::Axis;
 use volcal_formats::compensation::{self, CompFileType, Residual};
 use volcal_formats::model_file::{self, LoadedModel};
+use volcal_formats::{isg, sinumerik};
 
 /// The export formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -16,13 +17,17 @@ pub enum Format {
     Linuxcnc,
     /// The volumetric error vector and its U95 on a grid (grid.csv, grid.json).
     Grid,
+    /// ISG kernel / TwinCAT TF5280 volumetric compensation, ISG CSV (isg_x.csv, isg_y.csv, isg_z.csv).
+    Isg,
+    /// SINUMERIK EEC (eec.mpf, $AA_ENC_COMP) and CEC straightness tables (cec.mpf, $AN_CEC).
+    Sinumerik,
 }
 
 /// Options of `volcal export`.
 #[derive(Clone, Debug)]
 pub struct ExportOptions {
     pub format: Format,
-    /// Node spacing, metres (LinuxCNC default 10 mm; grid default 50 mm).
+    /// Node spacing, metres (LinuxCNC and ISG default 10 mm; SINUMERIK 20 mm; grid 50 mm).
     pub step_m: Option<f64>,
     /// Where the other axes stand for each joint's table (machine coordinates, metres); default
     /// the centre of the travel.
@@ -88,18 +93,58 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
                 write(out, &name, &t.linuxcnc_text(opts.comp_type))?;
                 let _ = writeln!(said, "wrote {} ({} nodes)", out.join(&name).display(), t.nominal_m.len());
             }
-            let grid_step = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max) / 10.0;
-            let r = compensation::residual(&model, &tables, grid_step, &p);
+            let grid_step = residual_step(&model);
+            let r = compensation::residual(&model, grid_step, &p, |x| compensation::joint_correction(&tables, x));
             let readme = linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step, &reversal);
             write(out, "README.txt", &readme)?;
+            said.push_str(&said_residual(&r, "positioning only"));
+        }
+        Format::Isg => {
+            let step = opts.step_m.unwrap_or(0.010);
+            let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
+            let tables = isg::isg(&model, step)?;
+            let comment = format!("volcal ISG CSV export (machine {}), model {}", file.topology, model_path.display());
+            for t in &tables {
+                let name = format!("isg_{}.csv", t.axis.letter().to_ascii_lowercase());
+                write(out, &name, &t.text(&comment))?;
+                let _ = writeln!(said, "wrote {} ({} records)", out.join(&name).display(), t.nominal_m.len());
+            }
+            let grid_step = residual_step(&model);
+            let r = isg::interpolation_residual(&model, &tables, grid_step, &p);
+            let records: usize = tables.iter().map(|t| t.nominal_m.len() + 1).sum();
+            write(
+                out,
+                "README.txt",
+                &isg_readme(&model.layout.topology, step, records, &p, &r, grid_step, &reversal, b),
+            )?;
+            said.push_str(&said_residual(&r, "all 21 functions, linear between the nodes"));
+        }
+        Format::Sinumerik => {
+            let step = opts.step_m.unwrap_or(0.020);
+            let point = opts.point.unwrap_or(centre);
+            let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
+            let (eec, cec) = sinumerik::sinumerik(&model, step, &point, &p)?;
+            let comment =
+                format!("volcal SINUMERIK export (machine {}), model {}", file.topology, model_path.display());
+            write(out, "eec.mpf", &sinumerik::eec_text(&eec, b, &comment))?;
+            write(out, "cec.mpf", &sinumerik::cec_text(&cec, &comment))?;
             let _ = writeln!(
                 said,
-                "volumetric error over the volume: RMS {:.3} um, max {:.3} um; after this compensation (positioning only): RMS {:.3} um, max {:.3} um",
-                r.rms_before_m * 1e6,
-                r.max_before_m * 1e6,
-                r.rms_after_m * 1e6,
-                r.max_after_m * 1e6
+                "wrote {} ({} EEC tables) and {} ({} CEC tables), {} points each",
+                out.join("eec.mpf").display(),
+                eec.len(),
+                out.join("cec.mpf").display(),
+                cec.len(),
+                eec[0].nominal_m.len()
             );
+            let grid_step = residual_step(&model);
+            let r = compensation::residual(&model, grid_step, &p, |x| sinumerik::correction(&eec, &cec, x));
+            write(
+                out,
+                "README.txt",
+                &sinumerik_readme(&file.topology, step, &eec, &point, &p, &r, grid_step, &reversal, b),
+            )?;
+            said.push_str(&said_residual(&r, "positioning and straightness"));
         }
         Format::Grid => {
             let step = opts.step_m.unwrap_or(0.050);
@@ -142,6 +187,38 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         }
     }
     Ok(said)
+}
+
+/// The grid the residual is computed on: a tenth of the longest travel.
+fn residual_step(model: &volcal::ErrorModel) -> f64 {
+    let travel = model.layout.travel;
+    Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max) / 10.0
+}
+
+/// The README's sentence on the error before and after, over the working volume.
+fn volume_residual(r: &Residual, grid_step: f64, p: &Vector3<f64>, left: &str) -> String {
+    format!(
+        "From the model, over the working volume ({:.1} mm grid, {} points, probe offset ({}, {}, {}) mm):\nvolumetric error RMS {:.3} um, max {:.3} um before; RMS {:.3} um, max {:.3} um {left}.",
+        grid_step * 1e3,
+        r.points,
+        p.x * 1e3,
+        p.y * 1e3,
+        p.z * 1e3,
+        r.rms_before_m * 1e6,
+        r.max_before_m * 1e6,
+        r.rms_after_m * 1e6,
+        r.max_after_m * 1e6
+    )
+}
+
+fn said_residual(r: &Residual, what: &str) -> String {
+    format!(
+        "volumetric error over the volume: RMS {:.3} um, max {:.3} um; after this compensation ({what}): RMS {:.3} um, max {:.3} um\n",
+        r.rms_before_m * 1e6,
+        r.max_before_m * 1e6,
+        r.rms_after_m * 1e6,
+        r.max_after_m * 1e6
+    )
 }
 
 fn linuxcnc_readme(
@@ -218,5 +295,138 @@ the error vector's largest component direction. All 21 error functions are in it
         ox = p.x * 1e3,
         oy = p.y * 1e3,
         oz = p.z * 1e3,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn isg_readme(
+    topo: &volcal::Topology,
+    step: f64,
+    records: usize,
+    p: &Vector3<f64>,
+    r: &Residual,
+    grid_step: f64,
+    reversal: &str,
+    backlash_m: [f64; 3],
+) -> String {
+    let topology = topo.to_string();
+    let chain: String = topo.chain().iter().map(|a| a.letter()).collect();
+    let workpiece_axes = Axis::ALL.iter().filter(|&&a| topo.is_table_axis(a)).count();
+    let lose: Vec<String> =
+        Axis::ALL.iter().map(|a| format!("{}: {:.0}", a.letter(), backlash_m[a.index()] * 1e7)).collect();
+    format!(
+        "ISG CSV volumetric compensation tables written by volcal (machine {topology}), for the ISG kernel
+(Beckhoff TwinCAT 3 CNC, TF5280 Volumetric Compensation).
+
+Files: isg_x.csv, isg_y.csv, isg_z.csv. Each: `//` comment lines, a header `X EXX EYX EZX EAX EBX ECX`
+(resp. Y, Z), then one record per node: the axis position in mm, the translational errors EXK EYK
+EZK in mm, the angular errors EAK EBK ECK in rad (the units TF5280 prescribes for every file format:
+offsets in millimetres, angles in radians, arguments in millimetres). Nodes evenly spaced about
+{step_mm} mm apart over the identified travel, ends included. After a `#` file break, isg_y.csv holds
+the squareness C0Y and isg_z.csv B0Z and A0Z (ISO 230-1 position errors, rad; volcal's EC0Y, EB0Z,
+EA0Z). {records} records in all.
+
+Load them in the compensation list of VOLCOMP[0] (the file vol_comp[0].file_name names, e.g.
+C:\\volcomp\\vol_comp_0.lis), then switch the compensation on in the NC program:
+
+  X                 1      (logical axis numbers of your X, Y, Z: P-VOLC-00001..3)
+  Y                 2
+  Z                 3
+  chain             {chain}    (P-VOLC-00007: volcal's axis stacking {topology}, workpiece to tool)
+  workpiece_axes    {workpiece_axes}      (P-VOLC-00008: axes carrying the workpiece in {topology})
+  Interpolation     GRID   (P-VOLC-00014: linear interpolation between the records)
+  file[0]           C:\\volcomp\\isg_x.csv
+  file_format[0]    ISG_CSV
+  file[1]           C:\\volcomp\\isg_y.csv
+  file_format[1]    ISG_CSV
+  file[2]           C:\\volcomp\\isg_z.csv
+  file_format[2]    ISG_CSV
+  and in the start-up list: vol_comp[0].max_records {records} or more
+
+  N010 #VOLCOMP ON [ID0]       (after a change of the files: #VOLCOMP OFF [ID0],
+  ...                           #VOLCOMP [ID0 UPDATE], #VOLCOMP ON [ID0])
+
+Sign: the tables hold the machine's errors, not corrections: ISO 230-1 deviations, volcal's
+convention error = actual - (commanded + probe offset), the convention of the ISG kernel, which
+computes the compensation from the errors through the kinematic chain (TF5280 \"List of parameters
+supported\", \"Units of measure\", \"ISG CSV format\"; infosys.beckhoff.com). Do not set
+P-VOLC-00009 negate. The chain and workpiece_axes above are volcal's model of the machine; check the
+sign on one point of a workpiece-side (table) axis before production use.
+
+What the format expresses: all 21 error functions (18 component errors and 3 squareness errors),
+so the controller compensates the whole identified model, tool at any offset. What it loses: the
+functions between the nodes (linear interpolation). {residual}
+
+Backlash is not part of the volumetric compensation: {reversal}. The ISG kernel takes it per axis
+in the axis parameters: P-AXIS-00103 getriebe[0].lose in 0.1 um ({lose}) and P-AXIS-00021
+lr_param.anwahl_losekomp (the direction the compensation acts in).
+",
+        step_mm = step * 1e3,
+        lose = lose.join(", "),
+        residual = volume_residual(r, grid_step, p, "left by the interpolation between nodes"),
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn sinumerik_readme(
+    topology: &str,
+    step: f64,
+    eec: &[sinumerik::Table],
+    point: &Point3<f64>,
+    p: &Vector3<f64>,
+    r: &Residual,
+    grid_step: f64,
+    reversal: &str,
+    backlash_m: [f64; 3],
+) -> String {
+    let points = eec.iter().map(|t| t.nominal_m.len()).max().unwrap_or(0);
+    let md: Vec<String> = Axis::ALL
+        .iter()
+        .map(|&a| {
+            format!("  MD32450 $MA_BACKLASH[0,{}] = {:.6} mm", sinumerik::axis_name(a), backlash_m[a.index()] * 1e3)
+        })
+        .collect();
+    format!(
+        "SINUMERIK compensation tables written by volcal (machine {topology}).
+
+eec.mpf (%_N_AX_EEC_INI): leadscrew / measuring-system error compensation (EEC) of each axis,
+$AA_ENC_COMP[0,N,AXi] with $AA_ENC_COMP_STEP, _MIN, _MAX, _IS_MODULO. cec.mpf (%_N_NC_CEC_INI): six
+sag/cross compensation (CEC) tables, one per base axis and straightness direction: $AN_CEC[t,N] with
+$AN_CEC_INPUT_AXIS (base axis), $AN_CEC_OUTPUT_AXIS (compensated axis), $AN_CEC_STEP, _MIN, _MAX,
+_DIRECTION 0, _MULT_BY_TABLE 0, _IS_MODULO 0. Both: CHANDATA(1) ... M17, positions and values in mm
+(metric), {points} points per table, evenly spaced about {step_mm} mm apart over the identified
+travel. Axis names: AX1 = X, AX2 = Y, AX3 = Z (edit them if your machine axes differ).
+
+Load (K3 Compensations, SINUMERIK Function Manual Extended Functions): with MD32700
+ENC_COMP_ENABLE = 0 and MD32710 CEC_ENABLE = 0, MD38000 $MA_MM_ENC_COMP_MAX_POINTS >= {points} and
+MD18342 $MN_MM_CEC_MAX_POINTS[0..5] >= {points} (840D sl; the 828D has eight CEC tables of 200
+points), run eec.mpf and cec.mpf, then set MD32700 = 1 and MD32710 = 1 and MD18342/MD32711 as
+your machine needs, NCK reset. volcal refuses tables of more than 200 points (--step-mm larger).
+
+Sign: EEC values are the error e = actual - commanded along the axis (K3 4.4.2.1: a positive
+compensation value moves the axis in the negative direction); CEC values are the correction
+added to the compensated axis, minus its error (K3 4.4.3, the sag example), relative to the
+reference point (zero there, so that EEC and CEC do not count the error at the point twice).
+
+What the format expresses: positioning of each axis (EEC) and the straightness of each axis in
+the two others (CEC), all taken along the three lines through ({px}, {py}, {pz}) mm with the tool at
+probe offset ({ox}, {oy}, {oz}) mm: each table holds the error of its line, including the angular
+errors' lever arms there. What it drops: angular errors away from those lines (pitch, yaw, roll
+acting through other lever arms) and squareness away from them, and everything between nodes.
+{residual}
+
+Backlash ({reversal}): machine data, not a table (SINUMERIK's backlash compensation adds it on
+each reversal; positive in the normal case, the measuring system leading the moving part):
+{md}
+",
+        md = md.join("\n"),
+        step_mm = step * 1e3,
+        px = point.x * 1e3,
+        py = point.y * 1e3,
+        pz = point.z * 1e3,
+        ox = p.x * 1e3,
+        oy = p.y * 1e3,
+        oz = p.z * 1e3,
+        residual = volume_residual(r, grid_step, p, "left after this compensation"),
     )
 }

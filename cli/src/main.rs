@@ -120,9 +120,9 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         #[arg(long)]
         out: PathBuf,
     },
-    /// Write compensation files a controller loads (LinuxCNC COMP_FILEs, a volumetric grid), with a README.txt.
+    /// Write compensation files a controller loads (LinuxCNC COMP_FILEs, ISG/TwinCAT volumetric tables, SINUMERIK EEC/CEC, a volumetric grid), with a README.txt.
     #[command(
-        after_help = "Example:\n  volcal export model.json --format linuxcnc --out comp/ --step-mm 10 --point 0.5,0.4,-0.3\n  volcal export model.json --format grid --out grid/ --step-mm 50\n\nREADME.txt in the output directory says how to load the files, what the format drops and the error that remains."
+        after_help = "Example:\n  volcal export model.json --format linuxcnc --out comp/ --step-mm 10 --point 0.5,0.4,-0.3\n  volcal export model.json --format grid --out grid/ --step-mm 50\n  volcal export model.json --format isg --out isg/ --step-mm 10\n  volcal export model.json --format sinumerik --out sin/ --step-mm 20 --point 0.5,0.4,-0.3 --diagnosis diag.json\n\nREADME.txt in the output directory says how to load the files, what the format drops and the error that remains."
     )]
     Export {
         model: PathBuf,
@@ -130,7 +130,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         format: volcal_cli::export_cmd::Format,
         #[arg(long)]
         out: PathBuf,
-        /// Node spacing, millimetres (default: linuxcnc 10, grid 50).
+        /// Node spacing, millimetres (default: linuxcnc 10, isg 10, sinumerik 20, grid 50).
         #[arg(long)]
         step_mm: Option<f64>,
         /// Where the other axes stand for each joint's table, x,y,z in metres (machine coordinates; default: the travel's centre).
@@ -142,7 +142,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// LinuxCNC COMP_FILE_TYPE: 0 (columns are actual positions) or 1 (columns are offsets).
         #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=1))]
         comp_type: u8,
-        /// A `volcal diagnose --json` file: its reversal error (backlash) goes into the forward/reverse columns.
+        /// A `volcal diagnose --json` file: its reversal error (backlash) goes into the LinuxCNC forward/reverse columns, SINUMERIK MD32450 or ISG P-AXIS-00103.
         #[arg(long)]
         diagnosis: Option<PathBuf>,
     },

@@ -8,6 +8,9 @@
 //!   nominal position (offset = nominal - column).
 //! - [`grid`]: the volumetric error vector and its U95 on a 3-D grid over the working volume,
 //!   for controllers with grid compensation and any tool downstream.
+//! - What the per-axis exports share (here and in [`crate::isg`], [`crate::sinumerik`]): the
+//!   nodes of a table ([`axis_nodes`]), the model sampled along the reference lines
+//!   ([`reference_lines`]) and the error a compensation leaves ([`residual`]).
 //!
 //! Sign convention (DESIGN.md): `e = actual - (commanded + probe offset)`. A controller that
 //! adds `offset(q)` to the command `q` lands at `q + offset + e`, so the correction is
@@ -19,7 +22,7 @@ use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use std::path::Path;
 use volcal::predict;
-use volcal::{Axis, ErrorModel};
+use volcal::{Axis, ErrorModel, Travel};
 use volcal_sim::controller::{interpolate, JointCompensation, JointOffsets};
 
 /// LinuxCNC reads at most this many lines of a `COMP_FILE`.
@@ -77,6 +80,82 @@ impl JointTable {
     }
 }
 
+/// The model's error vector sampled along one axis's reference line: the axis at each node, the
+/// other axes at the reference point. Every per-axis export (LinuxCNC, Sinumerik) reads its
+/// tables from these lines, so they all refer to the same points.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReferenceLine {
+    pub axis: Axis,
+    /// Nodes (commanded positions of `axis`), metres, ascending, evenly spaced, ends included.
+    pub nominal_m: Vec<f64>,
+    /// The volumetric error `e = actual - (commanded + probe offset)` at each node, metres.
+    pub error_m: Vec<Vector3<f64>>,
+}
+
+/// Checks a node spacing given on the command line.
+pub fn check_step(step_m: f64) -> Result<()> {
+    if !(step_m > 0.0 && step_m.is_finite()) {
+        bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
+    }
+    Ok(())
+}
+
+/// Evenly spaced nodes over the travel of `a`, about `step_m` apart, ends included; refused with
+/// what to change when there are more than `max_nodes` (`controller` names whose limit it is).
+pub fn axis_nodes(travel: &Travel, a: Axis, step_m: f64, max_nodes: usize, controller: &str) -> Result<Vec<f64>> {
+    check_step(step_m)?;
+    let [lo, hi] = travel.range(a);
+    let n = ((hi - lo) / step_m).round() as usize + 1;
+    if n > max_nodes {
+        bail!(
+            "axis {}: {n} nodes at {} mm over {:.1} mm of travel; {controller} reads at most {max_nodes} (use --step-mm {:.3} or more)",
+            a.letter(),
+            step_m * 1e3,
+            (hi - lo) * 1e3,
+            (hi - lo) / (max_nodes - 1) as f64 * 1e3
+        );
+    }
+    let n = n.max(2);
+    Ok((0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect())
+}
+
+/// The three reference lines through `point` (machine coordinates, metres, inside the travel),
+/// tool at probe offset `probe`, nodes as [`axis_nodes`] places them.
+pub fn reference_lines(
+    model: &ErrorModel,
+    step_m: f64,
+    point: &Point3<f64>,
+    probe: &Vector3<f64>,
+    max_nodes: usize,
+    controller: &str,
+) -> Result<Vec<ReferenceLine>> {
+    check_step(step_m)?;
+    let travel = model.layout.travel;
+    if !travel.contains(point, 1e-9) {
+        bail!(
+            "--point ({}, {}, {}) m lies outside the identified travel; the tables refer to a point inside it",
+            point.x,
+            point.y,
+            point.z
+        );
+    }
+    Axis::ALL
+        .iter()
+        .map(|&a| {
+            let nominal_m = axis_nodes(&travel, a, step_m, max_nodes, controller)?;
+            let error_m = nominal_m
+                .iter()
+                .map(|&q| {
+                    let mut x = *point;
+                    x[a.index()] = q;
+                    model.error(&x, probe)
+                })
+                .collect();
+            Ok(ReferenceLine { axis: a, nominal_m, error_m })
+        })
+        .collect()
+}
+
 /// The per-joint positioning tables of LinuxCNC: for each axis, its nodes every `step_m` over
 /// the model's travel, with the other axes at `point` (machine coordinates, metres) and the
 /// tool at probe offset `probe`; the correction is minus the error component along the axis,
@@ -88,44 +167,24 @@ pub fn linuxcnc(
     probe: &Vector3<f64>,
     backlash_m: [f64; 3],
 ) -> Result<Vec<JointTable>> {
-    if !(step_m > 0.0 && step_m.is_finite()) {
-        bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
+    let lines = reference_lines(model, step_m, point, probe, LINUXCNC_MAX_LINES, "LinuxCNC")?;
+    Ok(lines
+        .into_iter()
+        .map(|l| {
+            let k = l.axis.index();
+            let offset_m = l.error_m.iter().map(|e| -e[k]).collect();
+            JointTable { axis: l.axis, nominal_m: l.nominal_m, offset_m, backlash_m: backlash_m[k] }
+        })
+        .collect())
+}
+
+/// The correction per-joint tables add at `x`: each joint's offset on its own axis.
+pub fn joint_correction(tables: &[JointTable], x: &Point3<f64>) -> Vector3<f64> {
+    let mut c = Vector3::zeros();
+    for t in tables {
+        c[t.axis.index()] += t.offset_at(x[t.axis.index()]);
     }
-    let travel = model.layout.travel;
-    if !travel.contains(point, 1e-9) {
-        bail!(
-            "--point ({}, {}, {}) m lies outside the identified travel; the tables refer to a point inside it",
-            point.x,
-            point.y,
-            point.z
-        );
-    }
-    let mut tables = Vec::new();
-    for a in Axis::ALL {
-        let [lo, hi] = travel.range(a);
-        let n = ((hi - lo) / step_m).round() as usize + 1;
-        if n > LINUXCNC_MAX_LINES {
-            bail!(
-                "axis {}: {n} nodes at {} mm over {:.1} mm of travel; LinuxCNC reads at most {LINUXCNC_MAX_LINES} lines (use --step-mm {:.3} or more)",
-                a.letter(),
-                step_m * 1e3,
-                (hi - lo) * 1e3,
-                (hi - lo) / (LINUXCNC_MAX_LINES - 1) as f64 * 1e3
-            );
-        }
-        let n = n.max(2);
-        let nominal_m: Vec<f64> = (0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect();
-        let offset_m = nominal_m
-            .iter()
-            .map(|&q| {
-                let mut x = *point;
-                x[a.index()] = q;
-                -model.error(&x, probe)[a.index()]
-            })
-            .collect();
-        tables.push(JointTable { axis: a, nominal_m, offset_m, backlash_m: backlash_m[a.index()] });
-    }
-    Ok(tables)
+    c
 }
 
 /// Reads the `x.comp`, `y.comp`, `z.comp` of `dir` (those present) as LinuxCNC does (lines of
@@ -178,17 +237,19 @@ pub struct Residual {
     pub max_after_m: f64,
 }
 
-/// The error that remains where each joint is corrected by its table alone (what a per-joint
-/// positioning compensation cannot express: straightness, angular errors away from the table's
-/// reference point, squareness).
-pub fn residual(model: &ErrorModel, tables: &[JointTable], step_m: f64, probe: &Vector3<f64>) -> Residual {
+/// The error that remains where a controller adds `correction(x)` to the command at `x` (for
+/// per-joint tables, [`joint_correction`]: what a per-joint positioning compensation cannot
+/// express: straightness, angular errors away from the table's reference point, squareness).
+pub fn residual(
+    model: &ErrorModel,
+    step_m: f64,
+    probe: &Vector3<f64>,
+    correction: impl Fn(&Point3<f64>) -> Vector3<f64>,
+) -> Residual {
     let (mut s0, mut m0, mut s1, mut m1, mut n) = (0.0, 0.0f64, 0.0, 0.0f64, 0usize);
     for x in predict::grid(&model.layout.travel, step_m) {
         let e = model.error(&x, probe);
-        let mut r = e;
-        for t in tables {
-            r[t.axis.index()] += t.offset_at(x[t.axis.index()]);
-        }
+        let r = e + correction(&x);
         s0 += e.norm_squared();
         s1 += r.norm_squared();
         m0 = m0.max(e.norm());
@@ -212,9 +273,7 @@ pub fn grid(
     step_m: f64,
     probe: &Vector3<f64>,
 ) -> Result<Vec<(Point3<f64>, Vector3<f64>, f64)>> {
-    if !(step_m > 0.0 && step_m.is_finite()) {
-        bail!("--step-mm must be a positive number of millimetres, got {}", step_m * 1e3);
-    }
+    check_step(step_m)?;
     let pts = predict::grid(&model.layout.travel, step_m);
     if pts.len() > 5_000_000 {
         bail!("--step-mm {} gives {} grid points; use a coarser step", step_m * 1e3, pts.len());

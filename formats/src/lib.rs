@@ -7,7 +7,9 @@
 //! - [`machine`]: the machine file; [`plan`]: campaign plans and the simulator set-up.
 //! - [`campaign_csv`]: the campaign interchange format; [`merge`]: joining campaigns.
 //! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
-//! - [`compensation`]: compensation tables for controllers (LinuxCNC, a volumetric grid).
+//! - [`compensation`]: compensation tables for controllers (LinuxCNC, a volumetric grid) and what
+//!   every per-axis export shares (nodes, reference lines, the residual); [`isg`]: the ISG
+//!   kernel's (TwinCAT TF5280) volumetric tables; [`sinumerik`]: SINUMERIK EEC and CEC tables.
 //! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
 //! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
 //!   message conversions.
@@ -19,11 +21,13 @@ pub mod campaign_csv;
 pub mod compensation;
 pub mod compensation_grid;
 pub mod instrument;
+pub mod isg;
 pub mod machine;
 pub mod merge;
 pub mod model_file;
 pub mod plan;
 pub mod report;
+pub mod sinumerik;
 pub mod solving;
 pub mod truth_file;
 
