@@ -8,6 +8,7 @@
 //! - [`campaign_csv`]: the campaign interchange format; [`merge`]: joining campaigns.
 //! - [`model_file`], [`truth_file`]: model and simulation-truth JSON.
 //! - [`compensation`]: compensation tables for controllers (LinuxCNC, a volumetric grid).
+//! - [`iso230_2`]: a bidirectional positioning test (runs CSV) evaluated to ISO 230-2:2014.
 //! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
 //! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
 //!   message conversions.
@@ -18,6 +19,7 @@
 pub mod campaign_csv;
 pub mod compensation;
 pub mod instrument;
+pub mod iso230_2;
 pub mod machine;
 pub mod merge;
 pub mod model_file;
