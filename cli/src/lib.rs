@@ -7,6 +7,8 @@
 //! - [`commands`]: `simulate`, `solve`, `predict`, `map`, `report`, `demo` (the offline half).
 //! - [`diagnosis`]: `volcal diagnose` (the `volcal-diagnosis v1` JSON and the text report).
 //! - [`export_cmd`]: `volcal export` (compensation files a controller loads).
+//! - [`iso230_2_cmd`]: `volcal iso230-2` (a positioning test evaluated to ISO 230-2), drawn by
+//!   [`iso230_2_plot`] on a [`raster`].
 //! - [`validation`], [`paper_cmd`]: `volcal validate` and `volcal paper` (Han et al. 2021).
 //! - [`launch_cmd`]: `volcal launch`, `volcal bag info`, `volcal report BAG`.
 //! - [`bench`]: `volcal bench` (throughput of the recording chain).
@@ -17,6 +19,9 @@ pub mod commands;
 pub mod demo_chain;
 pub mod diagnosis;
 pub mod export_cmd;
+pub mod iso230_2_cmd;
+pub mod iso230_2_plot;
 pub mod launch_cmd;
 pub mod paper_cmd;
+pub mod raster;
 pub mod validation;

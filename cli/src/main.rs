@@ -146,6 +146,22 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         #[arg(long)]
         diagnosis: Option<PathBuf>,
     },
+    /// Evaluate a bidirectional positioning test to ISO 230-2:2014: accuracy A, repeatability R,
+    /// reversal value B, systematic error E, mean bidirectional error M, per direction too.
+    #[command(
+        name = "iso230-2",
+        after_help = "Example:\n  volcal iso230-2 tests/data/iso230_2/ecmc_fat_sat.csv --json figures.json --plot deviations.png\n\nRUNS.csv has the header target_mm,run,direction,deviation_um: one row per approach, direction + (moving up) or - (moving down), deviation = measured minus commanded position in micrometres. The JSON holds A, A_up, A_down, E, E_up, E_down, R, R_up, R_down, B, B_mean, M (micrometres) and the per-target table."
+    )]
+    Iso230_2 {
+        /// Runs file (CSV).
+        runs: PathBuf,
+        /// Write the figures and the per-target table (JSON).
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Draw the deviations, means and +-2s bands (PNG).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
     /// Print a model's report (or a bag's: what was recorded and paired); optionally write per-axis compensation tables.
     #[command(
         after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101\n  volcal report bags/sim_short          (a bag: topics, pairs, pairing; and model.json if the solver node left one there)"
@@ -376,6 +392,13 @@ fn run() -> anyhow::Result<ExitCode> {
                 diagnosis,
             };
             print!("{}", volcal_cli::export_cmd::export_cmd(&model, &out, &opts)?);
+        }
+        Command::Iso230_2 { runs, json, plot } => {
+            let (text, wrote) = volcal_cli::iso230_2_cmd::iso230_2_cmd(&runs, json.as_deref(), plot.as_deref())?;
+            print!("{text}");
+            for w in wrote {
+                eprintln!("{w}");
+            }
         }
         Command::Report { model, compensation_dir, points } => {
             if volcal_cli::launch_cmd::is_bag(&model) {

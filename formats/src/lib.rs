@@ -10,6 +10,7 @@
 //! - [`compensation`]: compensation tables for controllers (LinuxCNC, a volumetric grid) and what
 //!   every per-axis export shares (nodes, reference lines, the residual); [`isg`]: the ISG
 //!   kernel's (TwinCAT TF5280) volumetric tables; [`sinumerik`]: SINUMERIK EEC and CEC tables.
+//! - [`iso230_2`]: a bidirectional positioning test (runs CSV) evaluated to ISO 230-2:2014.
 //! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
 //! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
 //!   message conversions.
@@ -22,6 +23,7 @@ pub mod compensation;
 pub mod compensation_grid;
 pub mod instrument;
 pub mod isg;
+pub mod iso230_2;
 pub mod machine;
 pub mod merge;
 pub mod model_file;
