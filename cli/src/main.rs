@@ -131,7 +131,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         #[arg(long)]
         out: PathBuf,
         /// Node spacing, millimetres (default: linuxcnc 10, isg 10, sinumerik 20, grid 50).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         step_mm: Option<f64>,
         /// Where the other axes stand for each joint's table, x,y,z in metres (machine coordinates; default: the travel's centre).
         #[arg(long, allow_hyphen_values = true)]

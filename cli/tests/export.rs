@@ -92,7 +92,7 @@ fn tables_linuxcnc_cannot_hold_are_refused() {
     let dir = scratch("export-refused");
     let m = model(&dir);
     let (ok, _, err) = volcal(&[&"export", &m, &"--format", &"linuxcnc", &"--out", &dir.join("o"), &"--step-mm", &"1"]);
-    assert!(!ok && err.contains("at most 256 lines") && err.contains("--step-mm"), "{err}");
+    assert!(!ok && err.contains("LinuxCNC reads at most 256 nodes") && err.contains("--step-mm"), "{err}");
     let (ok, _, err) =
         volcal(&[&"export", &m, &"--format", &"linuxcnc", &"--out", &dir.join("o"), &"--point", &"5,0,0"]);
     assert!(!ok && err.contains("outside the identified travel"), "{err}");

@@ -108,7 +108,7 @@ pub fn axis_nodes(travel: &Travel, a: Axis, step_m: f64, max_nodes: usize, contr
     let n = ((hi - lo) / step_m).round() as usize + 1;
     if n > max_nodes {
         bail!(
-            "axis {}: {n} nodes at {} mm over {:.1} mm of travel; {controller} reads at most {max_nodes} (use --step-mm {:.3} or more)",
+            "axis {}: {n} nodes at {} mm over {:.1} mm of travel; {controller} reads at most {max_nodes} nodes per table (use --step-mm {:.3} or more)",
             a.letter(),
             step_m * 1e3,
             (hi - lo) * 1e3,
