@@ -149,7 +149,7 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         Format::Grid => {
             let step = opts.step_m.unwrap_or(0.050);
             let pts = compensation::grid(&model, &covariance, step, &p)?;
-            let mut csv = String::from("x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,u95_um\n");
+            let mut csv = format!("{}\n", volcal_formats::compensation_grid::GRID_HEADER);
             for (x, e, u) in &pts {
                 let _ = writeln!(
                     csv,
