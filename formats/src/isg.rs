@@ -27,7 +27,7 @@ use anyhow::Result;
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use volcal::{Axis, ErrorFunction, ErrorModel, Squareness};
-use volcal_sim::controller::interpolate;
+use volcal_sim::controller::bracket;
 
 /// volcal's own bound on the records of one axis (the ISG kernel's bound is the configured
 /// `vol_comp[i].max_records`, which README.txt says to set): a table this long at 0.01 mm
@@ -109,10 +109,11 @@ impl IsgTable {
         out
     }
 
-    /// The component errors a controller interpolating this table linearly reads at `q`.
-    fn interpolated(&self, m: usize, q: f64) -> f64 {
-        let column: Vec<f64> = self.values.iter().map(|v| v[m]).collect();
-        interpolate(&self.nominal_m, &column, q)
+    /// The six component errors a controller interpolating this table linearly reads at `q`.
+    fn interpolated(&self, q: f64) -> [f64; 6] {
+        let (i, s) = bracket(&self.nominal_m, q);
+        let v = &self.values;
+        std::array::from_fn(|m| if s == 0.0 { v[i][m] } else { v[i][m] + s * (v[i + 1][m] - v[i][m]) })
     }
 }
 
@@ -126,8 +127,9 @@ pub fn interpolation_residual(model: &ErrorModel, tables: &[IsgTable], step_m: f
         let mut lost = Vector3::zeros();
         for t in tables {
             let q = x[t.axis.index()];
+            let read = t.interpolated(q);
             let d: [f64; 6] = std::array::from_fn(|m| {
-                model.function_value(ErrorFunction::from_index(t.axis.index() * 6 + m), q) - t.interpolated(m, q)
+                model.function_value(ErrorFunction::from_index(t.axis.index() * 6 + m), q) - read[m]
             });
             let h = topology.lever_arm(t.axis, x, probe);
             lost += Vector3::new(d[0], d[1], d[2]) + Vector3::new(d[3], d[4], d[5]).cross(&h);

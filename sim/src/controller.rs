@@ -15,15 +15,26 @@ use nalgebra::Point3;
 /// Linear interpolation in a table with ascending `x`, end values held outside: how LinuxCNC
 /// (and most controllers) read a compensation table between its nodes.
 pub fn interpolate(x: &[f64], y: &[f64], q: f64) -> f64 {
+    let (i, s) = bracket(x, q);
+    if s == 0.0 {
+        y[i]
+    } else {
+        y[i] + s * (y[i + 1] - y[i])
+    }
+}
+
+/// Where `q` falls in the ascending nodes `x`: the node `i` at or below it and the fraction `s`
+/// of the way to node `i + 1` (`s` is 0 on a node and outside the table, at the nearest end).
+/// Several columns over the same nodes share one lookup.
+pub fn bracket(x: &[f64], q: f64) -> (usize, f64) {
     if q <= x[0] {
-        return y[0];
+        return (0, 0.0);
     }
     if q >= x[x.len() - 1] {
-        return y[y.len() - 1];
+        return (x.len() - 1, 0.0);
     }
     let i = x.partition_point(|v| *v <= q) - 1;
-    let s = (q - x[i]) / (x[i + 1] - x[i]);
-    y[i] + s * (y[i + 1] - y[i])
+    (i, (q - x[i]) / (x[i + 1] - x[i]))
 }
 
 /// One joint's table: offsets (metres) added to the command, by direction of travel.
