@@ -2,6 +2,7 @@
 //! find node pids, stop it.
 #![allow(dead_code)]
 
+pub mod cell;
 pub mod rrd;
 
 use std::io::{BufRead, BufReader};

@@ -22,11 +22,16 @@
 //!   scales, latched on a trigger input where the controller has one), in-position status.
 //! - [`EnvironmentBackend`]: air and material temperature sensors (e.g. the XC-80 station).
 //!
+//! A machine that speaks ROS 2's standard interfaces needs no Rust: [`ros2_control`] reads its
+//! `sensor_msgs/JointState` and sends it `trajectory_msgs/JointTrajectory` (the machine node's
+//! `backend: ros2_control`).
+//!
 //! The simulated backends additionally receive the simulation truth ([`Truth`]) that the sim
 //! nodes exchange on `/sim/truth/...`; hardware backends ignore it (the default method), and
 //! the nodes subscribe to those topics only when [`InterferometerBackend::simulated`] (etc.) says
 //! so.
 
+pub mod ros2_control;
 pub mod sim;
 
 pub use volcal_formats::instrument::{InstrumentInfo, LengthReading, Truth};

@@ -7,7 +7,7 @@
 //! `/machine/position`. The sim backend publishes
 //! the actual reflector position on `/sim/truth/reflector` alongside.
 //!
-//! Parameters: `backend` (sim), `rate_hz` (100), `idle_rate_hz` (2), `batch` (1), and for the
+//! Parameters: `backend` (sim, or ros2_control: see [`super::machine_cell`]), `rate_hz` (100), `idle_rate_hz` (2), `batch` (1), and for the
 //! sim backend `machine`, `seed`.
 
 use super::runtime::{check_backend, secs, TICK};
@@ -22,6 +22,10 @@ use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
+    // A ros2_control cell has its own loop: its coordinates arrive, they are not polled.
+    if node.args.get_or("backend", String::new())? == "ros2_control" {
+        return super::machine_cell::run(node);
+    }
     check_backend(node)?;
     let world = SimWorld::from_args(&node.args)?;
     run_with(node, SimMachine::new(&world, now_ns()), true)

@@ -8,6 +8,7 @@
 //! | [`tracer`] | `/sequencer/trigger` | `/tracer/range`, `/interferometer/info` |
 //! | [`deflector`] | `/deflector/command` | `/deflector/state` |
 //! | [`machine`] | `/machine/command`, `/sequencer/trigger` | `/machine/position`, `/machine/position_batch` |
+//! | [`machine_cell`] (`backend: ros2_control`) | the above, `/joint_states` | `/machine/position`, `/joint_trajectory_controller/joint_trajectory` |
 //! | [`environment`] | | `/environment` |
 //! | [`sequencer`] | positions, readings, `/deflector/state`, `/campaign/pairs` | `/deflector/command`, `/machine/command`, `/sequencer/trigger`, `/sequencer/status` |
 //! | [`recorder`] | everything above | `/campaign/pairs`; writes the bag |
@@ -22,6 +23,7 @@ pub mod environment;
 pub mod interferometer;
 pub mod latch;
 pub mod machine;
+pub mod machine_cell;
 pub mod recorder;
 pub mod sequencer;
 pub mod solver;

@@ -6,7 +6,7 @@
 use super::args::NodeArgs;
 use anyhow::{anyhow, bail, Context as _, Result};
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
-use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::dds::rustdds::{DomainParticipantBuilder, RTPSEntity};
 use ros2_client::qos::QosProfile;
 use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription};
 use std::net::{IpAddr, Ipv4Addr};
@@ -200,6 +200,19 @@ impl RosNode {
     /// Number of publishers discovered on a (remapped) topic.
     pub fn publisher_count(&self, topic: &str) -> usize {
         self.node.publisher_count(&self.resolve(topic))
+    }
+
+    /// Number of subscriptions of other participants discovered on a (remapped) topic: whether
+    /// a reliable, volatile message written now reaches anyone (e.g. a cell's
+    /// `joint_trajectory_controller` before the first trajectory).
+    pub fn remote_subscription_count(&self, topic: &str) -> usize {
+        let name = format!("rt/{}", self.resolve(topic).trim_start_matches('/'));
+        let dp = self._context.domain_participant();
+        let own = dp.guid().prefix;
+        dp.discovered_readers()
+            .iter()
+            .filter(|r| r.subscription_topic_data.topic_name == name && r.reader_proxy.remote_reader_guid.prefix != own)
+            .count()
     }
 
     /// Waits until every topic has a publisher; after `timeout`, names the missing ones.

@@ -1,0 +1,212 @@
+//! A campaign on a real ROS 2 cell (issue 14): an independent cell written with rclpy on Fast DDS
+//! (`tests/py/ros2_cell.py`, like `joint_state_broadcaster` + `joint_trajectory_controller`:
+//! joints not named x/y/z, an extra joint, 200 Hz joint states, trajectories followed with
+//! finite acceleration and 20 ms of lag) is driven through `launch_configs/cell_dry_run.yaml`.
+//!
+//! - every planned point is recorded as a pair whose coordinates are what the cell published;
+//! - the bag solves to the simulated truth within the predicted uncertainty;
+//! - the same on the fly;
+//! - a cell that misbehaves is named: a missing joint, NaN positions, joint states that stop
+//!   for a while (the campaign pauses and resumes, nothing is lost), a target never reached.
+
+mod common;
+
+use common::cell::{rclpy_python, Cell};
+use common::*;
+use nalgebra::Point3;
+use std::path::Path;
+use std::time::Duration;
+use volcal_cli::commands::solve_cmd;
+use volcal_formats::solving::{compare_with_truth, probe_offsets};
+use volcal_formats::truth_file::TruthFile;
+use volcal_msgs::msg::SyncedPair;
+use volcal_msgs::topics;
+use volcal_nodes::ros::domain;
+
+const JOINTS: &str = "joint_names:=x=gantry_x_joint,y=gantry_y_joint,z=quill_joint";
+
+fn pairs(bag: &Path) -> Vec<SyncedPair> {
+    let mut out = Vec::new();
+    volcal_bag::Bag::open(bag)
+        .unwrap()
+        .read(|m| {
+            if m.topic == topics::PAIRS {
+                out.push(m.decode::<SyncedPair>()?);
+            }
+            Ok(())
+        })
+        .unwrap();
+    out
+}
+
+/// The cell's published coordinates at `t_ns`, interpolated between its samples.
+fn cell_at(states: &[(i64, [f64; 3])], t_ns: i64) -> Option<[f64; 3]> {
+    let i = states.partition_point(|s| s.0 < t_ns);
+    if i == states.len() {
+        return None;
+    }
+    let (t1, p1) = states[i];
+    if t1 == t_ns || i == 0 {
+        return (t1 == t_ns).then_some(p1);
+    }
+    let (t0, p0) = states[i - 1];
+    let f = (t_ns - t0) as f64 / (t1 - t0) as f64;
+    Some([0, 1, 2].map(|k| p0[k] + f * (p1[k] - p0[k])))
+}
+
+/// Solves the bag and compares with the truth the dry run wrote.
+fn solves_to_truth(bag: &Path, truth: &Path, dir: &Path) {
+    let machine = repo().join("launch_configs/machines/demo_cmm.yaml");
+    let (solved, _) = solve_cmd(bag, &machine, &dir.join("model.json")).unwrap();
+    let truth_file = TruthFile::load(truth).unwrap();
+    let (truth_model, _) = truth_file.model.to_model().unwrap();
+    let campaign = volcal_bag::campaign::load_campaign(bag).unwrap();
+    let offsets = probe_offsets(&campaign);
+    let m = &solved.solution;
+    let cmp = compare_with_truth(&m.model, &m.covariance, &truth_model, solved.file.gauge, &offsets, 0.1);
+    let r = solved.file.residuals.as_ref().unwrap();
+    eprintln!(
+        "cell bag vs truth: RMS {:.3} um, max {:.3} um, predicted sigma RMS {:.3} um; residual RMS {:.4} um, chi2/dof {:.3}",
+        cmp.rms_m * 1e6,
+        cmp.max_m * 1e6,
+        cmp.predicted_rms_m * 1e6,
+        r.rms_m * 1e6,
+        r.variance_factor
+    );
+    assert!(cmp.rms_m < 2.0 * cmp.predicted_rms_m, "error {} m vs predicted {} m", cmp.rms_m, cmp.predicted_rms_m);
+    assert!(r.variance_factor < 1.5, "chi2/dof {}: pairs that do not match the cell's coordinates", r.variance_factor);
+}
+
+#[test]
+fn static_campaign_on_an_rclpy_cell() {
+    let Some(py) = rclpy_python() else { return };
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("cell-static");
+    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
+    // The cell is up before the campaign, as on a shop floor.
+    let cell = Cell::start(&py, &dir, lease.id, &[]);
+    std::thread::sleep(Duration::from_secs(2));
+    let truth_arg = format!("truth:={}", truth.display());
+    // A brisk gantry: 1 m/s, 100 m/s^2 (the cell follows whatever it is sent).
+    let args = [JOINTS, &truth_arg, "speed_mps:=1.0", "acceleration_mps2:=100"];
+    let (st, out) =
+        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
+    let states = cell.stop();
+    assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 960 acquired points"), "{out}");
+    let pairs = pairs(&bag);
+    assert_eq!(pairs.len(), 960, "every planned point recorded as a pair");
+    // A static pair's coordinates are one joint state of the cell, latched at the trigger.
+    let mut worst = 0.0f64;
+    for p in &pairs {
+        let nearest = states
+            .iter()
+            .map(|(_, s)| (0..3).map(|k| (s[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
+            .fold(f64::MAX, f64::min);
+        worst = worst.max(nearest);
+    }
+    eprintln!(
+        "{} joint states from the cell; largest distance of a pair to a published state {worst:.3e} m",
+        states.len()
+    );
+    assert!(worst < 1e-12, "a pair's coordinates are not what the cell published ({worst} m)");
+    solves_to_truth(&bag, &truth, &dir);
+}
+
+#[test]
+fn on_the_fly_campaign_on_an_rclpy_cell() {
+    let Some(py) = rclpy_python() else { return };
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("cell-otf");
+    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
+    let cell = Cell::start(&py, &dir, lease.id, &[]);
+    std::thread::sleep(Duration::from_secs(2));
+    let truth_arg = format!("truth:={}", truth.display());
+    let plan = format!("plan:={}", repo().join("launch_configs/plans/short_on_the_fly.yaml").display());
+    let args = [JOINTS, &truth_arg, &plan, "sample_rate_hz:=200", "speed_mps:=0.5"];
+    let (st, out) =
+        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
+    let states = cell.stop();
+    assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 48 on-the-fly segments"), "{out}");
+    let pairs = pairs(&bag);
+    // The pairs' coordinates are the cell's, interpolated at the reading's stamp.
+    let mut worst = 0.0f64;
+    for p in &pairs {
+        assert_eq!(p.pairing, SyncedPair::PAIRING_INTERPOLATED);
+        let c = cell_at(&states, p.header.stamp.to_nanos()).expect("a pair after the cell's last state");
+        worst = worst.max((Point3::from(c) - Point3::from(p.position_m)).norm());
+    }
+    eprintln!("{} interpolated pairs; largest distance to the cell's published path {worst:.3e} m", pairs.len());
+    assert!(pairs.len() > 1000, "{} pairs", pairs.len());
+    assert!(worst < 1e-9, "a pair is {worst} m off the cell's published path");
+    solves_to_truth(&bag, &truth, &dir);
+}
+
+/// Runs a very short campaign (72 points) on a cell playing a fault; returns the launch's status and output,
+/// and the pairs recorded.
+fn faulty_cell(name: &str, cell_args: &[&str], launch_args: &[&str]) -> (bool, String, usize) {
+    let py = rclpy_python().unwrap();
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch(name);
+    let bag = dir.join("bag");
+    let cell = Cell::start(&py, &dir, lease.id, cell_args);
+    std::thread::sleep(Duration::from_secs(2));
+    let plan = format!("plan:={}", repo().join("tests/data/plans/cell_faults.yaml").display());
+    let mut args = vec![JOINTS, &plan, "speed_mps:=1.0", "acceleration_mps2:=100"];
+    args.extend_from_slice(launch_args);
+    let (st, out) =
+        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
+    drop(cell);
+    // Whatever happened, the bag holds what was recorded and reads back.
+    let n = pairs(&bag).len();
+    (st.success(), out, n)
+}
+
+#[test]
+fn a_joint_missing_from_the_joint_states_is_named() {
+    if rclpy_python().is_none() {
+        return;
+    }
+    let (ok, out, n) = faulty_cell("cell-missing", &["--fault", "missing", "--fault-after", "2"], &[]);
+    assert!(!ok, "the campaign must not end as a success:\n{out}");
+    assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) is missing from the joint state"), "{out}");
+    eprintln!("missing joint: {n} pairs kept in the bag");
+    assert!(n > 0, "the pairs recorded before the fault are kept");
+}
+
+#[test]
+fn nan_positions_are_named() {
+    if rclpy_python().is_none() {
+        return;
+    }
+    let (ok, out, n) = faulty_cell("cell-nan", &["--fault", "nan", "--fault-after", "2"], &[]);
+    assert!(!ok, "{out}");
+    assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) reports position NaN"), "{out}");
+    assert!(n > 0);
+}
+
+#[test]
+fn joint_states_that_stop_pause_the_campaign_and_it_resumes() {
+    if rclpy_python().is_none() {
+        return;
+    }
+    let (ok, out, n) = faulty_cell("cell-stall", &["--fault", "stop", "--fault-after", "2", "--stop-for", "4"], &[]);
+    assert!(ok, "{out}");
+    assert!(out.contains("/joint_states: no joint state for"), "{out}");
+    assert!(out.contains("/joint_states: joint states arrive again; the machine resumes"), "{out}");
+    assert!(out.contains("the recorder confirmed all 72 acquired points"), "{out}");
+    assert_eq!(n, 72);
+}
+
+#[test]
+fn a_target_never_reached_is_named() {
+    if rclpy_python().is_none() {
+        return;
+    }
+    let (ok, out, n) =
+        faulty_cell("cell-stuck", &["--fault", "stuck", "--fault-after", "2"], &["motion_timeout_s:=2.0"]);
+    assert!(!ok, "{out}");
+    assert!(out.contains("not reached: joint \"gantry_y_joint\" (axis y)"), "{out}");
+    assert!(n > 0);
+}

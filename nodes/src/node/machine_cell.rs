@@ -1,0 +1,331 @@
+//! The machine node on a `ros2_control` cell (`backend: ros2_control`): motion commands from
+//! `/machine/command` become `trajectory_msgs/JointTrajectory` on `trajectory_topic`, and every
+//! `sensor_msgs/JointState` on `joint_states_topic` becomes a `/machine/position` sample stamped
+//! with the joint state's time (each one while moving, at `idle_rate_hz` at rest, the arrival
+//! when the axes have stayed within `position_tolerance_m` of the target for `settle_s`, and
+//! the latest coordinates latched on each trigger).
+//!
+//! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
+//! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
+//! the joint, the topic and the figures. Joint states that stop arriving for `topic_timeout_s`
+//! pause the machine (no arrival is reported, the sequencer waits and, past its own timeout,
+//! ends the campaign cleanly; the recorder keeps what was recorded); they resume the campaign
+//! when they come back.
+//!
+//! With `dry_run: true` the node also plays the machine's errors for the simulated
+//! instruments: the actual reflector position that the machine file's simulated errors give at
+//! the coordinates the cell reports, on `/sim/truth/reflector`, so that a whole campaign can be
+//! rehearsed on the cell before the optics are mounted; `truth` writes that simulation truth.
+//!
+//! Parameters: `joint_names` (`x=NAME,y=NAME,z=NAME`, required), `joint_scale`, `joint_sign`,
+//! `joint_states_topic` (`/joint_states`), `trajectory_topic`
+//! (`/joint_trajectory_controller/joint_trajectory`), `position_tolerance_m` (5e-6), `settle_s`
+//! (0.1), `acceleration_mps2` (1.0), `idle_rate_hz` (2), `topic_timeout_s` (2), `motion_timeout_s`
+//! (5), `plan` (its acquisition mode chooses the trajectories), `dry_run` (false) with `machine`,
+//! `seed` and `truth` (a path; empty: none).
+
+use super::runtime::TICK;
+use crate::backend::ros2_control::{trajectory, Arrival, JointMap, MotionLimits};
+use crate::backend::sim::SimWorld;
+use crate::ros::{now_ns, qos, shutdown, RosNode};
+use anyhow::{anyhow, bail, Result};
+use nalgebra::{Point3, Vector3};
+use rand_chacha::ChaCha8Rng;
+use volcal_bag::pairing::trigger_type;
+use volcal_msgs::msg::{MachineCommand, MachinePosition, ReflectorTruth, Trigger};
+use volcal_msgs::sensor_msgs::msg::JointState;
+use volcal_msgs::std_msgs::msg::Header;
+use volcal_msgs::topics;
+use volcal_msgs::trajectory_msgs::msg::JointTrajectory;
+
+/// The motion in progress (or last reached).
+struct Motion {
+    id: u64,
+    arrival: Arrival,
+    probe: Vector3<f64>,
+    speed_mps: f64,
+    /// When the trajectory went out, and the time it should take.
+    sent_ns: i64,
+    planned_s: f64,
+    arrived: bool,
+}
+
+/// One coordinate sample of the cell.
+#[derive(Clone, Copy)]
+struct Sample {
+    stamp_ns: i64,
+    position: Point3<f64>,
+    velocity: Vector3<f64>,
+    /// When it was received (for the staleness of the stream).
+    received_ns: i64,
+}
+
+/// The machine's errors played for the simulated instruments (`dry_run`).
+struct DryRun {
+    vm: volcal_sim::VirtualMachine,
+    rng: ChaCha8Rng,
+    at_rest: Option<(u64, Point3<f64>)>,
+}
+
+impl DryRun {
+    /// The actual reflector position: at rest with the repeatability drawn once per arrival,
+    /// moving without it.
+    fn actual(&mut self, id: u64, settled: bool, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
+        if !settled {
+            return self.vm.exact(x, p);
+        }
+        match self.at_rest {
+            Some((i, a)) if i == id => a,
+            _ => {
+                let a = self.vm.actual(x, p, &mut self.rng);
+                self.at_rest = Some((id, a));
+                a
+            }
+        }
+    }
+}
+
+fn dry_run(node: &RosNode) -> Result<Option<DryRun>> {
+    if !node.args.get_or("dry_run", false)? {
+        return Ok(None);
+    }
+    let world = SimWorld::from_args(&node.args)?;
+    if let Some(path) = node.args.path("truth")? {
+        let truth = volcal_sim::Truth {
+            model: world.cfg.machine.truth.clone(),
+            beams: vec![],
+            stations: vec![],
+            tracer_dead_path_m: 0.0,
+            injected: vec![],
+        };
+        volcal_formats::truth_file::TruthFile::new(&truth, world.seed, world.machine.gauge).write(&path)?;
+        log::info!("dry run: wrote the simulated machine's truth to {}", path.display());
+    }
+    Ok(Some(DryRun { vm: world.cfg.machine.clone(), rng: world.rng(0x4d41_4348), at_rest: None }))
+}
+
+fn position_msg(s: &Sample, m: Option<&Motion>, in_position: bool, trigger_id: u64) -> MachinePosition {
+    MachinePosition {
+        header: Header::at(s.stamp_ns, "machine"),
+        x_m: s.position.x,
+        y_m: s.position.y,
+        z_m: s.position.z,
+        probe_offset_m: m.map_or(Vector3::zeros(), |m| m.probe).into(),
+        velocity_mps: s.velocity.into(),
+        in_position,
+        position_id: m.map_or(0, |m| m.id),
+        trigger_id,
+    }
+}
+
+pub fn run(node: &mut RosNode) -> Result<()> {
+    let map = JointMap::parse(
+        &node.args.require::<String>("joint_names")?,
+        &node.args.get_or("joint_scale", String::new())?,
+        &node.args.get_or("joint_sign", String::new())?,
+    )?;
+    let js_topic: String = node.args.get_or("joint_states_topic", "/joint_states".to_string())?;
+    let traj_topic: String =
+        node.args.get_or("trajectory_topic", "/joint_trajectory_controller/joint_trajectory".to_string())?;
+    let tolerance: f64 = node.args.get_or("position_tolerance_m", 5e-6)?;
+    let settle_s: f64 = node.args.get_or("settle_s", 0.1)?;
+    let acceleration: f64 = node.args.get_or("acceleration_mps2", 1.0)?;
+    let idle_rate: f64 = node.args.get_or("idle_rate_hz", 2.0)?;
+    let topic_timeout: f64 = node.args.get_or("topic_timeout_s", 2.0)?;
+    let motion_timeout: f64 = node.args.get_or("motion_timeout_s", 5.0)?;
+    for (name, v) in [
+        ("position_tolerance_m", tolerance),
+        ("acceleration_mps2", acceleration),
+        ("idle_rate_hz", idle_rate),
+        ("topic_timeout_s", topic_timeout),
+        ("motion_timeout_s", motion_timeout),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            bail!("parameter {name}: must be a positive number, got {v}");
+        }
+    }
+    if !(settle_s >= 0.0) {
+        bail!("parameter settle_s: must not be negative, got {settle_s}");
+    }
+    // Free-running samples are taken on lines at constant speed (an on-the-fly plan); a static
+    // target is approached with the controller's own profile through one point.
+    let on_the_fly = matches!(
+        volcal_formats::plan::load_plan(node.args.path("plan")?.as_deref())?.acquisition,
+        volcal_sim::Acquisition::OnTheFly { .. }
+    );
+    let mut dry = dry_run(node)?;
+    node.warn_unused_parameters();
+
+    let mut states = node.subscription::<JointState>(&js_topic, qos::data())?;
+    let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
+    let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
+    let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
+    let traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
+    let truth = match dry {
+        Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
+        None => None,
+    };
+    let (js_topic, traj_topic) = (node.resolve(&js_topic), node.resolve(&traj_topic));
+    log::info!(
+        "ros2_control cell: joints {} (x, y, z) from {js_topic}, trajectories to {traj_topic}{}",
+        map.names.join(", "),
+        if dry.is_some() { "; dry run: simulated instruments follow the cell" } else { "" }
+    );
+    let publish =
+        |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
+
+    let idle_ns = (1e9 / idle_rate) as i64;
+    let mut last: Option<Sample> = None;
+    let mut motion: Option<Motion> = None;
+    let mut pending: Option<MachineCommand> = None;
+    let mut next_idle = 0i64;
+    let mut stalled = false;
+    let started = now_ns();
+    let mut waiting_reported = false;
+    let mut deaf_reported = false;
+    while !shutdown::requested() {
+        node.wait(TICK);
+        while let Some(c) = commands.next() {
+            pending = Some(c);
+        }
+        // A command is executed from where the cell says it is, once the cell's controller
+        // listens: a trajectory written before its subscription is matched is lost.
+        let listening = node.remote_subscription_count(&traj_topic) > 0;
+        if pending.is_some() && !listening && !deaf_reported && now_ns() - started > (topic_timeout * 1e9) as i64 {
+            log::warn!("no subscription on {traj_topic} yet: waiting for the cell (is its joint_trajectory_controller running?)");
+            deaf_reported = true;
+        }
+        if let (Some(c), Some(s), true) = (&pending, &last, listening) {
+            let target = Point3::new(c.x_m, c.y_m, c.z_m);
+            if !(c.speed_mps > 0.0 && c.speed_mps.is_finite()) {
+                bail!("motion {}: speed {} m/s is not a positive number", c.position_id, c.speed_mps);
+            }
+            let repeated = motion.as_ref().is_some_and(|m| m.id == c.position_id && m.arrival.target == target);
+            if let Some(m) = motion.as_ref().filter(|m| repeated && m.arrived) {
+                // The sequencer retries: it missed the arrival, report it again.
+                publish(position_msg(s, Some(m), true, 0))?;
+            } else {
+                // New, or a retry of a motion that has not arrived (the trajectory may have
+                // been lost): the controller replaces its trajectory by this one.
+                let limits = MotionLimits { speed_mps: c.speed_mps, acceleration_mps2: acceleration };
+                let t = trajectory(&map, &s.position, &target, &limits, on_the_fly);
+                let planned_s = t
+                    .points
+                    .last()
+                    .map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
+                traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+                if repeated {
+                    log::info!("motion {}: the sequencer asks again; trajectory sent again", c.position_id);
+                }
+                motion = Some(Motion {
+                    id: c.position_id,
+                    arrival: Arrival::new(target, tolerance, settle_s),
+                    probe: Vector3::from(c.probe_offset_m),
+                    speed_mps: c.speed_mps,
+                    sent_ns: now_ns(),
+                    planned_s,
+                    arrived: false,
+                });
+            }
+            pending = None;
+        }
+        while let Some(js) = states.next() {
+            let (position, velocity) = map.axes(&js, &js_topic)?;
+            let received = now_ns();
+            let stamp = match js.header.stamp.to_nanos() {
+                0 => received,
+                t => t,
+            };
+            let velocity = velocity.unwrap_or_else(|| match &last {
+                Some(l) if stamp > l.stamp_ns => (position - l.position) / ((stamp - l.stamp_ns) as f64 * 1e-9),
+                _ => Vector3::zeros(),
+            });
+            let sample = Sample { stamp_ns: stamp, position, velocity, received_ns: received };
+            if stalled {
+                log::info!("{js_topic}: joint states arrive again; the machine resumes");
+                stalled = false;
+                // The time to reach the target counts from the resumption.
+                if let Some(m) = motion.as_mut().filter(|m| !m.arrived) {
+                    m.sent_ns = received;
+                }
+            }
+            let (in_position, corner) = match &mut motion {
+                Some(m) => {
+                    let now_in = m.arrival.update(stamp, &position);
+                    let corner = now_in && !m.arrived;
+                    m.arrived |= now_in;
+                    (m.arrived && now_in, corner)
+                }
+                None => (true, last.is_none()),
+            };
+            if let (Some(d), Some(t)) = (&mut dry, &truth) {
+                let (id, probe) = motion.as_ref().map_or((0, Vector3::zeros()), |m| (m.id, m.probe));
+                let actual = d.actual(id, in_position, &position, &probe);
+                t.publish(ReflectorTruth {
+                    header: Header::at(stamp, "machine"),
+                    position_id: id,
+                    settled: in_position,
+                    actual_m: actual.coords.into(),
+                    velocity_mps: velocity.into(),
+                })
+                .map_err(|e| anyhow!("publish {}: {e:?}", topics::TRUTH_REFLECTOR))?;
+            }
+            if !in_position || corner || stamp >= next_idle {
+                publish(position_msg(&sample, motion.as_ref(), in_position, 0))?;
+                if in_position {
+                    next_idle = stamp + idle_ns;
+                }
+            }
+            last = Some(sample);
+        }
+        let now = now_ns();
+        match &last {
+            None if !waiting_reported && now - started > (topic_timeout * 1e9) as i64 => {
+                log::warn!(
+                    "no joint state on {js_topic} yet: waiting for the cell (is its joint_state_broadcaster running?)"
+                );
+                waiting_reported = true;
+            }
+            Some(s) if !stalled && now - s.received_ns > (topic_timeout * 1e9) as i64 => {
+                log::warn!(
+                    "{js_topic}: no joint state for {:.1} s (topic_timeout_s {topic_timeout}): the machine's coordinates are unknown, the campaign waits",
+                    (now - s.received_ns) as f64 * 1e-9
+                );
+                stalled = true;
+            }
+            _ => {}
+        }
+        if let (Some(m), Some(s)) = (&motion, &last) {
+            let limit = m.sent_ns + ((m.planned_s + motion_timeout) * 1e9) as i64;
+            if !m.arrived && !stalled && now > limit {
+                let off = m.arrival.offsets(&s.position);
+                let worst = (0..3).max_by(|&a, &b| off[a].abs().total_cmp(&off[b].abs())).unwrap_or(0);
+                bail!(
+                    "motion {} not reached: joint {:?} (axis {}) is at {:.6} m, {:.1} um from its target {:.6} m, {:.1} s after the trajectory went out on {traj_topic} (planned {:.1} s at {} m/s, position_tolerance_m {tolerance})",
+                    m.id,
+                    map.names[worst],
+                    ["x", "y", "z"][worst],
+                    s.position[worst],
+                    off[worst].abs() * 1e6,
+                    m.arrival.target[worst],
+                    (now - m.sent_ns) as f64 * 1e-9,
+                    m.planned_s,
+                    m.speed_mps
+                );
+            }
+        }
+        while let Some(t) = triggers.next() {
+            if t.trigger_type != trigger_type::POINT && t.trigger_type != trigger_type::PROBE {
+                continue;
+            }
+            match &last {
+                // The cell's latest coordinates are those at the trigger: a trigger is sent at rest.
+                Some(s) => {
+                    publish(position_msg(s, motion.as_ref(), motion.as_ref().is_none_or(|m| m.arrived), t.trigger_id))?
+                }
+                None => log::warn!("trigger {}: no joint state from {js_topic} yet, nothing to latch", t.trigger_id),
+            }
+        }
+    }
+    Ok(())
+}
