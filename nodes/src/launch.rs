@@ -589,8 +589,13 @@ launch:
             if p.extension().is_some_and(|x| x == "yaml") {
                 let mut o = BTreeMap::new();
                 // `--bag` for the configs that take one (the viz node's does not).
-                if std::fs::read_to_string(&p).unwrap().contains("{name: bag,") {
+                let text = std::fs::read_to_string(&p).unwrap();
+                if text.contains("{name: bag,") {
                     o.insert("bag".to_string(), "/tmp/b".to_string());
+                }
+                // The cell configs need the cell's joints.
+                if text.contains("{name: joint_names}") {
+                    o.insert("joint_names".to_string(), "x=a,y=b,z=c".to_string());
                 }
                 let d = LaunchDescription::load(&p, &o).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
                 for node in &d.nodes {

@@ -26,7 +26,7 @@ pub fn rclpy_python() -> Option<PathBuf> {
 }
 
 /// The environment of a ROS 2 Python process from the venv: its ament prefix and Fast DDS.
-fn ros_env(py: &Path) -> Vec<(&'static str, String)> {
+pub fn ros_env(py: &Path) -> Vec<(&'static str, String)> {
     let prefix = py.parent().and_then(Path::parent).unwrap().display().to_string();
     vec![("AMENT_PREFIX_PATH", prefix), ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp".into())]
 }

@@ -121,6 +121,11 @@ impl Launch {
         }
     }
 
+    /// Whether the launch is still running.
+    pub fn running(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+
     /// Ctrl-C.
     pub fn interrupt(&self) {
         signal(self.child.id() as i32, libc::SIGINT);
