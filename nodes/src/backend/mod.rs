@@ -22,7 +22,9 @@
 //!   scales, latched on a trigger input where the controller has one), in-position status.
 //! - [`EnvironmentBackend`]: air and material temperature sensors (e.g. the XC-80 station).
 //!
-//! A machine that speaks ROS 2's standard interfaces needs no Rust: [`ros2_control`] reads its
+//! An instrument needs no Rust either when a few lines of any language bridge its SDK to the
+//! text protocol of [`line`] (TCP or a serial port; the interferometer, tracer and environment
+//! nodes' `backend: line`). A machine that speaks ROS 2's standard interfaces needs no Rust: [`ros2_control`] reads its
 //! `sensor_msgs/JointState` and sends it `trajectory_msgs/JointTrajectory` (the machine node's
 //! `backend: ros2_control`).
 //!
@@ -31,6 +33,7 @@
 //! the nodes subscribe to those topics only when [`InterferometerBackend::simulated`] (etc.) says
 //! so.
 
+pub mod line;
 pub mod ros2_control;
 pub mod sim;
 

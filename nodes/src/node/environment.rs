@@ -1,9 +1,10 @@
 //! The environment node: publishes the air and material temperatures on `/environment` at
 //! `rate_hz` (default 1).
 //!
-//! Parameters: `backend` (sim), `rate_hz`, and for the sim backend `machine`, `seed`.
+//! Parameters: `backend` (sim, or line: `device`, `reply_timeout_s`, see
+//! [`crate::backend::line`]), `rate_hz`, and for the sim backend `machine`, `seed`.
 
-use super::runtime::{check_backend, secs};
+use super::runtime::{backend, secs};
 use crate::backend::sim::{SimEnvironment, SimWorld};
 use crate::backend::EnvironmentBackend;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
@@ -13,7 +14,10 @@ use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
-    check_backend(node)?;
+    if backend(node, &["sim", "line"])? == "line" {
+        let link = crate::backend::line::open_from_args(&node.args)?;
+        return run_with(node, crate::backend::line::LineEnvironment { link });
+    }
     let world = SimWorld::from_args(&node.args)?;
     run_with(node, SimEnvironment::new(&world))
 }

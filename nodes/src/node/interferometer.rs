@@ -3,11 +3,12 @@
 //! freely for on-the-fly acquisition (batched on `/interferometer/abscissa_batch` when
 //! `batch` > 1).
 //!
-//! Parameters: `backend` (sim), `rate_hz` (0: triggered only), `batch` (1), `latch_timeout_s`
+//! Parameters: `backend` (sim, or line: `device`, `reply_timeout_s`, see
+//! [`crate::backend::line`]), `rate_hz` (0: triggered only), `batch` (1), `latch_timeout_s`
 //! (1.0), and for the sim backend `machine`, `plan`, `seed`, `signal_noise` (0.001).
 
 use super::latch::PendingTriggers;
-use super::runtime::{check_backend, secs, TICK};
+use super::runtime::{backend, secs, TICK};
 use crate::backend::sim::{SimInterferometer, SimWorld};
 use crate::backend::{InterferometerBackend, LengthReading};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
@@ -18,7 +19,10 @@ use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
-    check_backend(node)?;
+    if backend(node, &["sim", "line"])? == "line" {
+        let link = crate::backend::line::open_from_args(&node.args)?;
+        return run_with(node, crate::backend::line::LineInterferometer::new(link)?);
+    }
     let world = SimWorld::from_args(&node.args)?;
     let noise = node.args.get_or("signal_noise", 0.001)?;
     let backend = SimInterferometer::new(&world, noise);

@@ -32,7 +32,7 @@ pub mod viz;
 
 mod runtime;
 
-pub use runtime::{check_backend, run, run_with_args, secs, NodeMain, TICK};
+pub use runtime::{backend, check_backend, run, run_with_args, secs, NodeMain, TICK};
 
 /// The nodes by executable name (`volcal_interferometer`) or node name (`interferometer`):
 /// `(default node name, entry point)`. `volcal node NAME` runs them from the `volcal` binary,

@@ -40,13 +40,19 @@ pub fn run_with_args(default_name: &str, body: NodeMain, args: Vec<String>) -> E
 /// The `backend` parameter: only `sim` is built in; hardware backends implement the traits of
 /// [`crate::backend`].
 pub fn check_backend(node: &RosNode) -> Result<()> {
+    backend(node, &["sim"]).map(drop)
+}
+
+/// The `backend` parameter (default `sim`), one of `available`.
+pub fn backend(node: &RosNode, available: &[&str]) -> Result<String> {
     let b: String = node.args.get_or("backend", "sim".to_string())?;
-    if b != "sim" {
+    if !available.contains(&b.as_str()) {
         bail!(
-            "parameter backend: {b:?} is not available in this build (only \"sim\"); a hardware backend implements the traits in crate::backend"
+            "parameter backend: {b:?} is not available in this build for this node (only {}); a hardware backend implements the traits in crate::backend",
+            available.iter().map(|a| format!("{a:?}")).collect::<Vec<_>>().join(", ")
         );
     }
-    Ok(())
+    Ok(b)
 }
 
 /// Sleep granularity of node loops when nothing arrives.

@@ -2,11 +2,12 @@
 //! (`/tracer/range`, tagged with the trigger id), like the interferometer node does abscissae.
 //! The station comes with the trigger: the sequencer knows where the operator set the tracer.
 //!
-//! Parameters: `backend` (sim), `latch_timeout_s` (1.0), and for the sim backend `machine`,
+//! Parameters: `backend` (sim, or line: `device`, `reply_timeout_s`, see
+//! [`crate::backend::line`]), `latch_timeout_s` (1.0), and for the sim backend `machine`,
 //! `plan` (a tracer plan: its stations are the tracer's positions), `seed`.
 
 use super::latch::PendingTriggers;
-use super::runtime::{check_backend, TICK};
+use super::runtime::{backend, TICK};
 use crate::backend::sim::{SimTracer, SimWorld};
 use crate::backend::TracerBackend;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
@@ -17,7 +18,10 @@ use volcal_msgs::std_msgs::msg::Header;
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
-    check_backend(node)?;
+    if backend(node, &["sim", "line"])? == "line" {
+        let link = crate::backend::line::open_from_args(&node.args)?;
+        return run_with(node, crate::backend::line::LineTracer::new(link)?);
+    }
     let world = SimWorld::from_args(&node.args)?;
     let backend = SimTracer::new(&world)?;
     run_with(node, backend)
