@@ -113,3 +113,48 @@ fn rclpy_started_with_the_node_set_names_every_node() {
 fn rclpy_started_after_the_node_set_names_every_node() {
     start_order(4.0);
 }
+
+/// A node restarted mid-campaign (the interferometer, stopped and respawned by the launch) is
+/// seen to go and named again by rclpy.
+#[test]
+fn a_restarted_node_is_named_again() {
+    let Some(py) = rclpy_python() else { return };
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("graph-respawn");
+    let mut launch = Launch::start(
+        &launch_config("sim_campaign_short.yaml"),
+        Some(&dir.join("bag")),
+        lease.id,
+        &["station_setup_s:=4", "respawn_instruments:=true"],
+    );
+    let probe = Command::new(&py)
+        .arg(repo().join("tests/py/ros2_graph.py"))
+        .args(["--seconds", "11"])
+        .envs(common::cell::ros_env(&py))
+        .env("ROS_DOMAIN_ID", lease.id.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env_remove("ROS_LOCALHOST_ONLY")
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    launch.wait_for("the interferometer's start", Duration::from_secs(30), |l| l.contains("started interferometer"));
+    std::thread::sleep(Duration::from_secs(3));
+    let pid = launch.pid_of("interferometer").expect("interferometer pid");
+    signal(pid, libc::SIGTERM);
+    let out = probe.wait_with_output().unwrap();
+    launch.interrupt();
+    let (_, log) = launch.wait(Duration::from_secs(60));
+    assert!(log.contains("respawned interferometer"), "{log}");
+    let g: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let events: Vec<(f64, String)> = serde_json::from_value(g["events"].clone()).unwrap();
+    let gone = events.iter().find(|e| e.1 == "-/interferometer").unwrap_or_else(|| panic!("never gone: {events:?}"));
+    let back = events
+        .iter()
+        .find(|e| e.1 == "+/interferometer" && e.0 > gone.0)
+        .unwrap_or_else(|| panic!("never named again: {events:?}\n{log}"));
+    eprintln!(
+        "interferometer gone at {:.2} s, named again at {:.2} s (respawned 0.5 s after it ended)",
+        gone.0, back.0
+    );
+    assert!(back.0 - gone.0 <= 5.0, "named again only {:.2} s after it went", back.0 - gone.0);
+}

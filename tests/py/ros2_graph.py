@@ -24,10 +24,14 @@ def main():
     node = rclpy.create_node("volcal_graph_probe")
     nodes_seen, topics_seen = {}, {}
     last_nodes, last_topics, all_at = [], [], None
+    events = []  # [t, "+/name" or "-/name"] as nodes come and go
     while time.monotonic() - t0 < a.seconds:
         rclpy.spin_once(node, timeout_sec=0.1)
         now = round(time.monotonic() - t0, 3)
-        last_nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces())
+        names = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces())
+        events += [[now, "+" + n] for n in sorted(set(names) - set(last_nodes))]
+        events += [[now, "-" + n] for n in sorted(set(last_nodes) - set(names))]
+        last_nodes = names
         last_topics = sorted((t, sorted(types)) for t, types in node.get_topic_names_and_types())
         for n in last_nodes:
             nodes_seen.setdefault(n, now)
@@ -36,7 +40,7 @@ def main():
         if expect and all_at is None and expect <= {n.rsplit("/", 1)[-1] for n in last_nodes}:
             all_at = now
     print(json.dumps({"nodes_first_seen": nodes_seen, "topics_first_seen": topics_seen,
-                      "nodes_last": last_nodes, "all_expected_at": all_at,
+                      "nodes_last": last_nodes, "all_expected_at": all_at, "events": events,
                       "topics_last": last_topics, "elapsed": round(time.monotonic() - t0, 3)}))
     node.destroy_node()
     rclpy.try_shutdown()
