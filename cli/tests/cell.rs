@@ -77,22 +77,35 @@ fn solves_to_truth(bag: &Path, truth: &Path, dir: &Path) {
     assert!(r.variance_factor < 1.5, "chi2/dof {}: pairs that do not match the cell's coordinates", r.variance_factor);
 }
 
+/// A campaign through `cell_dry_run.yaml` on a fresh rclpy cell (started 2 s before, as on a
+/// shop floor, with `cell_args`): the launch's success and output, the cell's published states,
+/// and the scratch directory (the bag is `bag`, the truth `truth.json`).
+fn campaign_on_cell(
+    py: &Path,
+    name: &str,
+    cell_args: &[&str],
+    launch_args: &[&str],
+) -> (bool, String, Vec<(i64, [f64; 3])>, std::path::PathBuf) {
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch(name);
+    let cell = Cell::start(py, &dir, lease.id, cell_args);
+    std::thread::sleep(Duration::from_secs(2));
+    let truth_arg = format!("truth:={}", dir.join("truth.json").display());
+    let mut args = vec![JOINTS, &truth_arg];
+    args.extend_from_slice(launch_args);
+    let (st, out) = Launch::start(&launch_config("cell_dry_run.yaml"), Some(&dir.join("bag")), lease.id, &args)
+        .wait(Duration::from_secs(600));
+    (st.success(), out, cell.stop(), dir)
+}
+
 #[test]
 fn static_campaign_on_an_rclpy_cell() {
     let Some(py) = rclpy_python() else { return };
-    let lease = domain::lease().unwrap();
-    let dir = volcal_tests::scratch("cell-static");
-    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
-    // The cell is up before the campaign, as on a shop floor.
-    let cell = Cell::start(&py, &dir, lease.id, &[]);
-    std::thread::sleep(Duration::from_secs(2));
-    let truth_arg = format!("truth:={}", truth.display());
     // A brisk gantry: 1 m/s, 100 m/s^2 (the cell follows whatever it is sent).
-    let args = [JOINTS, &truth_arg, "speed_mps:=1.0", "acceleration_mps2:=100"];
-    let (st, out) =
-        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
-    let states = cell.stop();
-    assert!(st.success(), "launch failed:\n{out}");
+    let (ok, out, states, dir) =
+        campaign_on_cell(&py, "cell-static", &[], &["speed_mps:=1.0", "acceleration_mps2:=100"]);
+    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
+    assert!(ok, "launch failed:\n{out}");
     assert!(out.contains("the recorder confirmed all 960 acquired points"), "{out}");
     let pairs = pairs(&bag);
     assert_eq!(pairs.len(), 960, "every planned point recorded as a pair");
@@ -116,18 +129,11 @@ fn static_campaign_on_an_rclpy_cell() {
 #[test]
 fn on_the_fly_campaign_on_an_rclpy_cell() {
     let Some(py) = rclpy_python() else { return };
-    let lease = domain::lease().unwrap();
-    let dir = volcal_tests::scratch("cell-otf");
-    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
-    let cell = Cell::start(&py, &dir, lease.id, &[]);
-    std::thread::sleep(Duration::from_secs(2));
-    let truth_arg = format!("truth:={}", truth.display());
     let plan = format!("plan:={}", repo().join("launch_configs/plans/short_on_the_fly.yaml").display());
-    let args = [JOINTS, &truth_arg, &plan, "sample_rate_hz:=200", "speed_mps:=0.5"];
-    let (st, out) =
-        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
-    let states = cell.stop();
-    assert!(st.success(), "launch failed:\n{out}");
+    let (ok, out, states, dir) =
+        campaign_on_cell(&py, "cell-otf", &[], &[&plan, "sample_rate_hz:=200", "speed_mps:=0.5"]);
+    let (bag, truth) = (dir.join("bag"), dir.join("truth.json"));
+    assert!(ok, "launch failed:\n{out}");
     assert!(out.contains("the recorder confirmed all 48 on-the-fly segments"), "{out}");
     let pairs = pairs(&bag);
     // The pairs' coordinates are the cell's, interpolated at the reading's stamp.
@@ -146,21 +152,12 @@ fn on_the_fly_campaign_on_an_rclpy_cell() {
 /// Runs a very short campaign (72 points) on a cell playing a fault; returns the launch's status and output,
 /// and the pairs recorded.
 fn faulty_cell(name: &str, cell_args: &[&str], launch_args: &[&str]) -> (bool, String, usize) {
-    let py = rclpy_python().unwrap();
-    let lease = domain::lease().unwrap();
-    let dir = volcal_tests::scratch(name);
-    let bag = dir.join("bag");
-    let cell = Cell::start(&py, &dir, lease.id, cell_args);
-    std::thread::sleep(Duration::from_secs(2));
     let plan = format!("plan:={}", repo().join("tests/data/plans/cell_faults.yaml").display());
-    let mut args = vec![JOINTS, &plan, "speed_mps:=1.0", "acceleration_mps2:=100"];
+    let mut args = vec![plan.as_str(), "speed_mps:=1.0", "acceleration_mps2:=100"];
     args.extend_from_slice(launch_args);
-    let (st, out) =
-        Launch::start(&launch_config("cell_dry_run.yaml"), Some(&bag), lease.id, &args).wait(Duration::from_secs(600));
-    drop(cell);
+    let (ok, out, _, dir) = campaign_on_cell(&rclpy_python().unwrap(), name, cell_args, &args);
     // Whatever happened, the bag holds what was recorded and reads back.
-    let n = pairs(&bag).len();
-    (st.success(), out, n)
+    (ok, out, pairs(&dir.join("bag")).len())
 }
 
 #[test]

@@ -169,19 +169,40 @@ pub fn open_from_args(args: &crate::ros::NodeArgs) -> Result<LineLink> {
     LineLink::open(&device, Duration::from_secs_f64(timeout))
 }
 
+/// What the node learnt (a beam, a station) and tells the bridge with its next reading: the
+/// backend traits' `new_beam`/`new_station` cannot fail, a request can.
+struct Announced<T> {
+    latest: Option<T>,
+    told: Option<T>,
+}
+
+impl<T: Copy + PartialEq> Announced<T> {
+    fn new() -> Self {
+        Announced { latest: None, told: None }
+    }
+
+    /// Sends `request(latest)` unless the bridge already has it.
+    fn tell(&mut self, link: &mut LineLink, request: impl Fn(T) -> String) -> Result<()> {
+        if let Some(x) = self.latest.filter(|x| Some(*x) != self.told) {
+            link.command(&request(x))?;
+            self.told = Some(x);
+        }
+        Ok(())
+    }
+}
+
 /// An interferometer behind a bridge.
 pub struct LineInterferometer {
     link: LineLink,
     info: InstrumentInfo,
-    /// The beam announced by the deflector and not yet told to the bridge.
-    beam: Option<(u32, u32)>,
-    told: Option<(u32, u32)>,
+    /// The beam (station, beam) the deflector announced.
+    beam: Announced<(u32, u32)>,
 }
 
 impl LineInterferometer {
     pub fn new(mut link: LineLink) -> Result<LineInterferometer> {
         let info = link.info()?;
-        Ok(LineInterferometer { link, info, beam: None, told: None })
+        Ok(LineInterferometer { link, info, beam: Announced::new() })
     }
 }
 
@@ -190,13 +211,10 @@ impl InterferometerBackend for LineInterferometer {
         self.info.clone()
     }
     fn new_beam(&mut self, station: u32, beam: u32) {
-        self.beam = Some((station, beam));
+        self.beam.latest = Some((station, beam));
     }
     fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
-        if let Some(b) = self.beam.filter(|b| Some(*b) != self.told) {
-            self.link.command(&format!("BEAM {} {}", b.0, b.1))?;
-            self.told = Some(b);
-        }
+        self.beam.tell(&mut self.link, |(s, b)| format!("BEAM {s} {b}"))?;
         self.link.read(at_ns, point, position_id)
     }
 }
@@ -205,14 +223,13 @@ impl InterferometerBackend for LineInterferometer {
 pub struct LineTracer {
     link: LineLink,
     info: InstrumentInfo,
-    station: Option<u32>,
-    told: Option<u32>,
+    station: Announced<u32>,
 }
 
 impl LineTracer {
     pub fn new(mut link: LineLink) -> Result<LineTracer> {
         let info = link.info()?;
-        Ok(LineTracer { link, info, station: None, told: None })
+        Ok(LineTracer { link, info, station: Announced::new() })
     }
 }
 
@@ -221,13 +238,10 @@ impl TracerBackend for LineTracer {
         self.info.clone()
     }
     fn new_station(&mut self, station: u32) {
-        self.station = Some(station);
+        self.station.latest = Some(station);
     }
     fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
-        if let Some(s) = self.station.filter(|s| Some(*s) != self.told) {
-            self.link.command(&format!("STATION {s}"))?;
-            self.told = Some(s);
-        }
+        self.station.tell(&mut self.link, |s| format!("STATION {s}"))?;
         self.link.read(at_ns, point, position_id)
     }
 }
