@@ -624,6 +624,30 @@ fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
     (*e >= total / 3.0).then_some(g)
 }
 
+/// The SI unit of a found effect's parameter, from its name (the names [`describe`] and the
+/// catalogue give carry their unit as a suffix): `m`, `s`, `rad`, `m/s`, `1/K`, `ppm`, `index`
+/// (a station, beam, point or axis number) or `1` (dimensionless: a fraction, a relative scale).
+/// Nonrigid coupling terms (`eX:P1(x)P1(y)`) are lengths.
+pub fn parameter_unit(name: &str) -> &'static str {
+    if name.ends_with("_m_per_s") {
+        "m/s"
+    } else if name.ends_with("_per_k") {
+        "1/K"
+    } else if name.contains("_ppm") {
+        "ppm"
+    } else if name.ends_with("_rad") {
+        "rad"
+    } else if name.ends_with("_s") {
+        "s"
+    } else if name.ends_with("_m") || (name.starts_with('e') && name.contains(":P")) {
+        "m"
+    } else if matches!(name, "axis" | "station" | "beam" | "index") {
+        "index"
+    } else {
+        "1"
+    }
+}
+
 /// Physical parameters and a plain statement for a found effect.
 fn describe(
     family: Family,
@@ -925,4 +949,32 @@ fn map_change(a: &ErrorModel, b: &ErrorModel, obs: &Observations) -> (f64, f64) 
         }
     }
     ((s2 / n.max(1.0)).sqrt(), m)
+}
+
+#[cfg(test)]
+mod unit_tests {
+    use super::parameter_unit;
+
+    #[test]
+    fn units_follow_the_parameter_names() {
+        for (name, unit) in [
+            ("uncompensated_fraction", "1"),
+            ("index_change_ppm_end", "ppm"),
+            ("scale_drift_ppm_peak", "ppm"),
+            ("scale_drift_p1", "1"),
+            ("alpha_x_per_k", "1/K"),
+            ("station2_vx_m_per_s", "m/s"),
+            ("latency_s", "s"),
+            ("backlash_x_m", "m"),
+            ("phase_rad", "rad"),
+            ("period_m", "m"),
+            ("probe1_dz_m", "m"),
+            ("ex:P1(y)P2(z)", "m"),
+            ("station", "index"),
+            ("index", "index"),
+            ("step_m", "m"),
+        ] {
+            assert_eq!(parameter_unit(name), unit, "{name}");
+        }
+    }
 }
