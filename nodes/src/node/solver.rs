@@ -108,12 +108,15 @@ fn publish(node: &mut RosNode, model: &ModelFile, diagnosis: Option<Diagnosis>) 
     let diagnosis_publisher = match diagnosis {
         Some(d) => {
             let publisher = node.publisher::<Diagnosis>(topics::DIAGNOSIS, qos::latched())?;
-            let (verdict, n) = (d.verdict, d.effects.len());
+            let verdict = match d.verdict {
+                Diagnosis::CLEAN => "clean".to_string(),
+                Diagnosis::EFFECTS_NAMED => {
+                    format!("named {}", d.effects.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))
+                }
+                _ => "an excess no catalogue effect explains".to_string(),
+            };
             publisher.publish(d).map_err(|e| anyhow!("publish {}: {e:?}", topics::DIAGNOSIS))?;
-            log::info!(
-                "published the diagnosis on {} (transient-local; verdict {verdict}, {n} effect(s) named)",
-                node.resolve(topics::DIAGNOSIS)
-            );
+            log::info!("published the diagnosis on {} (transient-local): {verdict}", node.resolve(topics::DIAGNOSIS));
             Some(publisher)
         }
         None => None,
