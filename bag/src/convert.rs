@@ -7,11 +7,13 @@ use anyhow::{anyhow, Result};
 use nalgebra::{Point3, Vector3};
 use volcal::campaign::{CampaignMeta, Compensation, ObsKind, Reading};
 use volcal::environment::{Air, AirIndexEquation};
+use volcal_formats::diagnosis_file::{DiagnosisFile, LocationEntry};
 use volcal_formats::instrument::{InstrumentInfo, Truth};
 use volcal_formats::model_file::ModelFile;
 use volcal_msgs::msg::{
-    Abscissa, AbscissaBatch, BeamState, Environment, ErrorFunction, ErrorModel, InterferometerInfo, MachinePosition,
-    MachinePositionBatch, ReflectorTruth, SyncedPair, TracerRange, Trigger,
+    Abscissa, AbscissaBatch, BeamState, DiagnosedEffect, Diagnosis, EffectParameter, Environment, ErrorFunction,
+    ErrorModel, InterferometerInfo, MachinePosition, MachinePositionBatch, ReflectorTruth, ResidualLocation,
+    SyncedPair, TracerRange, Trigger,
 };
 use volcal_msgs::std_msgs::msg::Header;
 
@@ -261,6 +263,74 @@ pub fn error_model_msg(f: &ModelFile, stamp_ns: i64) -> Result<ErrorModel> {
         machine_sha256: f.provenance.machine_sha256.clone(),
         software: f.provenance.software.clone(),
         model_json: serde_json::to_string(f)?,
+    })
+}
+
+/// The `/diagnosis` message of a diagnosis file (with the file itself as lossless JSON).
+/// `model` says which model was published on `/error_model` with it. The figures are the
+/// file's, unchanged: the message and `volcal diagnose --json` agree to the bit.
+pub fn diagnosis_msg(f: &DiagnosisFile, model: &str, stamp_ns: i64) -> Result<Diagnosis> {
+    let location = |l: &LocationEntry| ResidualLocation {
+        kind: l.kind.clone(),
+        label: l.label.clone(),
+        excess_chi2: l.excess_chi2,
+        share: l.share,
+        fraction: l.fraction,
+        p_value: l.p_value,
+        detail: l.detail.clone(),
+    };
+    let verdict = if !f.effects.is_empty() {
+        Diagnosis::EFFECTS_NAMED
+    } else if f.unexplained.is_some() {
+        Diagnosis::UNEXPLAINED
+    } else {
+        Diagnosis::CLEAN
+    };
+    Ok(Diagnosis {
+        header: Header::at(stamp_ns, "machine"),
+        format: f.format.clone(),
+        verdict,
+        model: model.to_string(),
+        input: f.provenance.input.clone(),
+        input_sha256: f.provenance.input_sha256.clone(),
+        machine: f.provenance.machine.clone(),
+        machine_sha256: f.provenance.machine_sha256.clone(),
+        software: f.provenance.software.clone(),
+        n_readings: f.n_readings as u64,
+        rms_before_m: f.rms_before_m,
+        rms_after_m: f.rms_after_m,
+        noise_rms_m: f.noise_rms_m,
+        chi2_per_dof_before: f.chi2_per_dof_before,
+        chi2_per_dof_after: f.chi2_per_dof_after,
+        effects: f
+            .effects
+            .iter()
+            .map(|e| DiagnosedEffect {
+                id: e.id.clone(),
+                parameters: e
+                    .parameters
+                    .iter()
+                    .map(|(name, v)| EffectParameter {
+                        name: name.clone(),
+                        value: *v,
+                        uncertainty: e.uncertainty.get(name).copied().unwrap_or(0.0),
+                        unit: volcal::diagnose::parameter_unit(name).to_string(),
+                    })
+                    .collect(),
+                delta_rms_m: e.delta_rms_m,
+                log10_bayes_factor: e.evidence,
+                p_value: e.p_value,
+                statement: e.statement.clone(),
+                alternatives: e.alternatives.clone(),
+            })
+            .collect(),
+        locations: f.locations.iter().map(location).collect(),
+        remaining: f.remaining.iter().map(location).collect(),
+        unexplained: f.unexplained.clone().unwrap_or_default(),
+        map_change_rms_m: f.map_change_rms_m,
+        map_change_max_m: f.map_change_max_m,
+        statements: f.statements.clone(),
+        diagnosis_json: serde_json::to_string(f)?,
     })
 }
 

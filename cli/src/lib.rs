@@ -5,7 +5,8 @@
 //! this crate.
 //!
 //! - [`commands`]: `simulate`, `solve`, `predict`, `map`, `report`, `demo` (the offline half).
-//! - [`diagnosis`]: `volcal diagnose` (the `volcal-diagnosis v1` JSON and the text report).
+//! - [`diagnosis`]: `volcal diagnose` (reads the campaign; the diagnosis, its JSON and report are
+//!   `volcal_formats::diagnosing` and `diagnosis_file`, shared with the replay node).
 //! - [`export_cmd`]: `volcal export` (compensation files a controller loads).
 //! - [`iso230_2_cmd`]: `volcal iso230-2` (a positioning test evaluated to ISO 230-2), drawn by
 //!   [`iso230_2_plot`] on a [`raster`].

@@ -12,6 +12,8 @@
 //!   kernel's (TwinCAT TF5280) volumetric tables; [`sinumerik`]: SINUMERIK EEC and CEC tables.
 //! - [`iso230_2`]: a bidirectional positioning test (runs CSV) evaluated to ISO 230-2:2014.
 //! - [`report`]: text tables; [`solving`]: a campaign solved for a machine file, its summary.
+//! - [`diagnosing`]: a campaign diagnosed for a machine file (`volcal diagnose`, the replay
+//!   node); [`diagnosis_file`]: the diagnosis JSON and the printed report.
 //! - [`instrument`]: what the instruments report, shared by the node backends and the bag's
 //!   message conversions.
 //!
@@ -21,6 +23,8 @@
 pub mod campaign_csv;
 pub mod compensation;
 pub mod compensation_grid;
+pub mod diagnosing;
+pub mod diagnosis_file;
 pub mod instrument;
 pub mod isg;
 pub mod iso230_2;

@@ -95,6 +95,8 @@ pub mod topics {
     pub const PAIRS: &str = "/campaign/pairs";
     /// `ErrorModel` (transient-local): solver -> anyone.
     pub const ERROR_MODEL: &str = "/error_model";
+    /// `Diagnosis` (transient-local): solver (with `diagnose: true`) -> anyone.
+    pub const DIAGNOSIS: &str = "/diagnosis";
     /// `BeamState`: the true simulated beam. Sim instruments only; never read by the solver.
     pub const TRUTH_BEAM: &str = "/sim/truth/beam";
     /// `ReflectorTruth`: the true simulated reflector position. Sim instruments only.

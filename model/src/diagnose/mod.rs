@@ -566,7 +566,7 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate) -> Evaluated {
     let n = obs.len() as f64;
     let (chi2, dof) = (sol.stats.chi2, sol.stats.dof as f64);
     let k = score.rank as f64;
-    let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 {
+    let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 || !consistent(&score, chi2) {
         (1.0, f64::NEG_INFINITY)
     } else {
         let s2 = alternative_variance(&score, chi2, dof);
@@ -586,13 +586,36 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate) -> Evaluated {
 /// degrees of freedom, corrected for `tests` scanned hypotheses.
 fn f_test(score: &Score, chi2: f64, dof: f64, tests: usize) -> f64 {
     let k = score.rank as f64;
-    if score.rank == 0 || dof - k < 1.0 {
+    if score.rank == 0 || dof - k < 1.0 || !consistent(score, chi2) {
         return 1.0;
     }
     let s2 = alternative_variance(score, chi2, dof);
     let fstat = (score.delta_chi2 / k) / s2;
-    let p = FisherSnedecor::new(k, dof - k).map(|d| d.sf(fstat)).unwrap_or(1.0);
-    (p * tests as f64).min(1.0)
+    (f_sf(k, dof - k, fstat) * tests as f64).min(1.0)
+}
+
+/// Whether a score can be a property of the data: the linearised extension cannot remove more
+/// than the whole chi-square of the fit (its residual sum of squares is not negative). A score
+/// beyond that comes from a numerically singular Schur complement, an effect the campaign does
+/// not separate whatever rank was counted (a few lines of one station, for a probe offset or a
+/// nonrigid coupling): it is untestable, like an effect the model already expresses.
+fn consistent(score: &Score, chi2: f64) -> bool {
+    score.delta_chi2 <= chi2 * (1.0 + 1e-6)
+}
+
+/// Survival function of the F distribution with `d1`, `d2` degrees of freedom at `fstat`.
+/// When the effect explains the residual almost entirely the statistic runs past 1e300
+/// (`alternative_variance` floors at 1e-300) and statrs' `sf` forms `inf / inf` and panics in
+/// the incomplete beta function; there the probability, `I_x(d2/2, d1/2)` with
+/// `x = d2 / (d2 + d1 fstat)` below 1e-300, is zero in double precision.
+fn f_sf(d1: f64, d2: f64, fstat: f64) -> f64 {
+    if fstat.is_nan() {
+        return 1.0;
+    }
+    if !(d1 * fstat + d2).is_finite() {
+        return 0.0;
+    }
+    FisherSnedecor::new(d1, d2).map(|d| d.sf(fstat)).unwrap_or(1.0)
 }
 
 /// Variance of unit weight under the alternative (the fit extended by the effect).
@@ -622,6 +645,30 @@ fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
     }
     let (g, e) = excess.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
     (*e >= total / 3.0).then_some(g)
+}
+
+/// The SI unit of a found effect's parameter, from its name (the names [`describe`] and the
+/// catalogue give carry their unit as a suffix): `m`, `s`, `rad`, `m/s`, `1/K`, `ppm`, `index`
+/// (a station, beam, point or axis number) or `1` (dimensionless: a fraction, a relative scale).
+/// Nonrigid coupling terms (`eX:P1(x)P1(y)`) are lengths.
+pub fn parameter_unit(name: &str) -> &'static str {
+    if name.ends_with("_m_per_s") {
+        "m/s"
+    } else if name.ends_with("_per_k") {
+        "1/K"
+    } else if name.contains("_ppm") {
+        "ppm"
+    } else if name.ends_with("_rad") {
+        "rad"
+    } else if name.ends_with("_s") {
+        "s"
+    } else if name.ends_with("_m") || (name.starts_with('e') && name.contains(":P")) {
+        "m"
+    } else if matches!(name, "axis" | "station" | "beam" | "index") {
+        "index"
+    } else {
+        "1"
+    }
 }
 
 /// Physical parameters and a plain statement for a found effect.
@@ -925,4 +972,44 @@ fn map_change(a: &ErrorModel, b: &ErrorModel, obs: &Observations) -> (f64, f64) 
         }
     }
     ((s2 / n.max(1.0)).sqrt(), m)
+}
+
+#[cfg(test)]
+mod unit_tests {
+    use super::{f_sf, parameter_unit};
+
+    #[test]
+    fn f_test_survives_statistics_past_any_double() {
+        // What a degenerate campaign (a few lines of one station) gives for probe_offset: the
+        // score removes more than the fit's chi-square, the statistic is about 5e307.
+        assert_eq!(f_sf(5.0, 210.0, 5.2e307), 0.0);
+        assert_eq!(f_sf(22.0, 193.0, f64::INFINITY), 0.0);
+        assert_eq!(f_sf(3.0, 100.0, f64::NAN), 1.0);
+        // Ordinary statistics are statrs' own.
+        let p = f_sf(3.0, 100.0, 2.0);
+        assert!(p > 0.1 && p < 0.15, "{p}");
+    }
+
+    #[test]
+    fn units_follow_the_parameter_names() {
+        for (name, unit) in [
+            ("uncompensated_fraction", "1"),
+            ("index_change_ppm_end", "ppm"),
+            ("scale_drift_ppm_peak", "ppm"),
+            ("scale_drift_p1", "1"),
+            ("alpha_x_per_k", "1/K"),
+            ("station2_vx_m_per_s", "m/s"),
+            ("latency_s", "s"),
+            ("backlash_x_m", "m"),
+            ("phase_rad", "rad"),
+            ("period_m", "m"),
+            ("probe1_dz_m", "m"),
+            ("ex:P1(y)P2(z)", "m"),
+            ("station", "index"),
+            ("index", "index"),
+            ("step_m", "m"),
+        ] {
+            assert_eq!(parameter_unit(name), unit, "{name}");
+        }
+    }
 }

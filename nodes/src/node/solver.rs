@@ -2,22 +2,31 @@
 //! synchronised pairs, writes the model JSON and publishes it on `/error_model` with
 //! transient-local durability, so that a node joining later still receives it.
 //!
-//! Parameters: `bag` (required), `machine` (default: the built-in demo machine), `out` (model
-//! JSON; default `model.json` inside the bag directory), `linger_s` (how long to keep serving
-//! the model; negative: until stopped, the default).
+//! With `diagnose: true` it runs the diagnosis `volcal diagnose` runs
+//! ([`volcal_formats::diagnosing::diagnose_campaign`], the same code) instead of the plain
+//! solve: the model written and published is the refit (the rigid-body model fitted together
+//! with the named effects), and the diagnosis goes out on `/diagnosis` (transient-local too),
+//! saying which model `/error_model` carries.
+//!
+//! Parameters: `bag` (required: a bag, or a campaign CSV as `volcal solve` and `volcal
+//! diagnose` accept), `machine` (default: the built-in demo machine), `out` (model JSON;
+//! default `model.json` inside the bag directory), `diagnose` (default false), `linger_s` (how
+//! long to keep serving the model; negative: until stopped, the default).
 
 use super::runtime::secs;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, Result};
+use ros2_client::Publisher;
 use sha2::{Digest, Sha256};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 use volcal_bag::campaign::{self, input_sha256};
-use volcal_bag::convert::error_model_msg;
+use volcal_bag::convert::{diagnosis_msg, error_model_msg};
+use volcal_formats::diagnosing::diagnose_campaign;
 use volcal_formats::machine::{Machine, DEMO_MACHINE};
-use volcal_formats::model_file::{sha256_file, Provenance};
+use volcal_formats::model_file::{sha256_file, ModelFile, Provenance};
 use volcal_formats::solving::{probe_offsets, solve_campaign, summary};
-use volcal_msgs::msg::ErrorModel;
+use volcal_msgs::msg::{Diagnosis, ErrorModel};
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
@@ -28,6 +37,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         None if bag.is_dir() => bag.join("model.json"),
         None => bag.with_extension("model.json"),
     };
+    let diagnose: bool = node.args.get_or("diagnose", false)?;
     let linger: f64 = node.args.get_or("linger_s", -1.0)?;
     node.warn_unused_parameters();
     let (machine, machine_name, machine_sha) = match &machine_path {
@@ -39,7 +49,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         ),
     };
     let started = Instant::now();
-    let campaign = campaign::read(&bag)?;
+    let campaign = campaign::load_campaign(&bag)?;
     log::info!("replaying {} pairs from {}", campaign.readings.len(), bag.display());
     let provenance = Provenance {
         input: bag.display().to_string(),
@@ -48,18 +58,73 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         machine_sha256: machine_sha,
         software: volcal_formats::software_version(),
     };
-    let solved = solve_campaign(&campaign, machine, &bag.display().to_string(), provenance)?;
-    solved.file.write(&out)?;
-    print!("{}", summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign)));
+    let source = bag.display().to_string();
+    let (model, diagnosis) = if diagnose {
+        let d = diagnose_campaign(&campaign, &machine, &source, provenance.clone())?;
+        print!("{}", d.report);
+        let model = d.refit_model(provenance);
+        let which = which_model(&d.file.effects.iter().map(|e| e.id.as_str()).collect::<Vec<_>>(), &out);
+        (model, Some(diagnosis_msg(&d.file, &which, now_ns())?))
+    } else {
+        let solved = solve_campaign(&campaign, machine, &source, provenance)?;
+        print!(
+            "{}",
+            summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign))
+        );
+        (solved.file, None)
+    };
+    model.write(&out)?;
     log::info!("solved in {:.1} s; wrote model to {}", started.elapsed().as_secs_f64(), out.display());
-    let publisher = node.publisher::<ErrorModel>(topics::ERROR_MODEL, qos::latched())?;
-    publisher
-        .publish(error_model_msg(&solved.file, now_ns())?)
-        .map_err(|e| anyhow!("publish {}: {e:?}", topics::ERROR_MODEL))?;
-    log::info!("published the model on {} (transient-local)", node.resolve(topics::ERROR_MODEL));
+    // Held until the node ends: the latched samples live as long as their writers.
+    let _publishers = publish(node, &model, diagnosis)?;
     let until = (linger >= 0.0).then(|| Instant::now() + secs(linger));
     while !shutdown::requested() && until.is_none_or(|u| Instant::now() < u) {
         node.wait(secs(0.05));
     }
     Ok(())
+}
+
+/// What the Diagnosis message says of the model on `/error_model`.
+fn which_model(effects: &[&str], out: &Path) -> String {
+    if effects.is_empty() {
+        format!("the rigid-body fit (nothing named, so no refit), as written to {}", out.display())
+    } else {
+        format!(
+            "the refit: the rigid-body model fitted together with the named effects ({}), as written to {}",
+            effects.join(", "),
+            out.display()
+        )
+    }
+}
+
+/// The latched publishers of the model and of the diagnosis.
+type Publishers = (Publisher<ErrorModel>, Option<Publisher<Diagnosis>>);
+
+/// Publishes the model (and the diagnosis, if any) latched: late joiners receive them as long
+/// as the returned publishers live.
+fn publish(node: &mut RosNode, model: &ModelFile, diagnosis: Option<Diagnosis>) -> Result<Publishers> {
+    // The diagnosis first: a subscriber that sees the refit model finds the diagnosis already
+    // there.
+    let diagnosis_publisher = match diagnosis {
+        Some(d) => {
+            let publisher = node.publisher::<Diagnosis>(topics::DIAGNOSIS, qos::latched())?;
+            let verdict = match d.verdict {
+                Diagnosis::CLEAN => "clean".to_string(),
+                Diagnosis::EFFECTS_NAMED => {
+                    format!("named {}", d.effects.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))
+                }
+                _ => "an excess no catalogue effect explains".to_string(),
+            };
+            publisher.publish(d).map_err(|e| anyhow!("publish {}: {e:?}", topics::DIAGNOSIS))?;
+            log::info!("published the diagnosis on {} (transient-local): {verdict}", node.resolve(topics::DIAGNOSIS));
+            Some(publisher)
+        }
+        None => None,
+    };
+    let publisher = node.publisher::<ErrorModel>(topics::ERROR_MODEL, qos::latched())?;
+    publisher
+        .publish(error_model_msg(model, now_ns())?)
+        .map_err(|e| anyhow!("publish {}: {e:?}", topics::ERROR_MODEL))?;
+    log::info!("published the model on {} (transient-local)", node.resolve(topics::ERROR_MODEL));
+    Ok((publisher, diagnosis_publisher))
 }

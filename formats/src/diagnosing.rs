@@ -1,0 +1,57 @@
+//! A loaded campaign diagnosed for a machine file: what `volcal diagnose` and the replay node
+//! (`volcal_solver` with `diagnose: true`) both run, so that they give the same diagnosis of
+//! the same readings. Reading the campaign (CSV or bag) is the caller's: bags are above this
+//! crate.
+
+use crate::diagnosis_file::{text_report, DiagnosisFile};
+use crate::machine::Machine;
+use crate::model_file::{ModelFile, Provenance};
+use crate::solving::prepare_campaign;
+use anyhow::Result;
+use volcal::campaign::{Campaign, Observations};
+use volcal::diagnose::{diagnose, geometry::Optics, DiagnoseOptions, Diagnosis};
+
+/// A diagnosed campaign: the file written by `--json`, the printed report, and what the
+/// Rerun view and the refit model need.
+pub struct Diagnosed {
+    pub file: DiagnosisFile,
+    pub report: String,
+    pub diagnosis: Diagnosis,
+    pub obs: Observations,
+}
+
+impl Diagnosed {
+    /// The refit model (the rigid-body model fitted together with the named effects) as a
+    /// model file; with nothing named it is the plain fit. Its warnings name the effects that
+    /// were modelled, since the model file has no place for their parameters.
+    pub fn refit_model(&self, provenance: Provenance) -> ModelFile {
+        let mut f = ModelFile::from_solution(&self.diagnosis.after, &self.obs.groups, provenance);
+        if !self.file.effects.is_empty() {
+            let ids: Vec<&str> = self.file.effects.iter().map(|e| e.id.as_str()).collect();
+            f.warnings.push(format!(
+                "refit by the diagnosis with these effects modelled beside the rigid-body model: {} (their parameters are in the diagnosis)",
+                ids.join(", ")
+            ));
+        }
+        f
+    }
+}
+
+/// Prepares and diagnoses `campaign` for `machine`. `source` names the input in warnings and
+/// errors (a solve that cannot run is an error naming it, never a panic).
+pub fn diagnose_campaign(
+    campaign: &Campaign,
+    machine: &Machine,
+    source: &str,
+    provenance: Provenance,
+) -> Result<Diagnosed> {
+    let prepared = prepare_campaign(campaign, machine, source)?;
+    let opts = DiagnoseOptions::new(
+        machine.solve_options(),
+        Optics { wavelength_vac_m: campaign.meta.wavelength_vac_m, air_equation: campaign.meta.air_equation },
+    );
+    let d = diagnose(&machine.layout, &prepared.obs, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let n = prepared.obs.len();
+    let file = DiagnosisFile::new(&d, n, provenance);
+    Ok(Diagnosed { file, report: text_report(&d, source, n), diagnosis: d, obs: prepared.obs })
+}
