@@ -10,42 +10,20 @@ independently of volcal from the .msg definition, and prints each sample as a JS
 COUNT samples arrived or TIMEOUT_S passed. A first line {"ready": true} says the reader exists.
 """
 import json
-import os
 import struct
 import sys
 import time
 from dataclasses import dataclass
 
-# Loopback only: no multicast; discover the other participants by unicast on 127.0.0.1.
-os.environ["CYCLONEDDS_URI"] = (
-    "<CycloneDDS><Domain id='any'><General>"
-    "<Interfaces><NetworkInterface address='127.0.0.1'/></Interfaces>"
-    "<AllowMulticast>false</AllowMulticast></General>"
-    "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-    "<MaxAutoParticipantIndex>40</MaxAutoParticipantIndex>"
-    "<Peers><Peer address='127.0.0.1'/></Peers></Discovery>"
-    "</Domain></CycloneDDS>"
-)
+from cyclone_loopback import Header_  # noqa: E402  (sets the loopback-only configuration first)
 
 from cyclonedds.core import Policy, Qos  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.idl.types import float64, int32, uint32, uint64  # noqa: E402
+from cyclonedds.idl.types import float64, uint32, uint64  # noqa: E402
 from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
-
-
-@dataclass
-class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
-    sec: int32
-    nanosec: uint32
-
-
-@dataclass
-class Header_(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
-    stamp: Time_
-    frame_id: str
 
 
 @dataclass

@@ -6,9 +6,9 @@
 
 mod common;
 
-use common::cell::{rclpy_python, ros_env};
+use common::cell::{rclpy_python, ros_python};
 use common::*;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::Duration;
 use volcal_nodes::ros::domain;
 
@@ -27,16 +27,11 @@ fn rclpy_receives_the_error_model_early_and_late() {
     let dir = volcal_tests::scratch("rclpy-error-model");
     let model = dir.join("model.json");
     let subscriber = |name: &str| {
-        Command::new(&py)
-            .arg(repo().join("tests/py/rclpy_error_model.py"))
+        ros_python(&py, "rclpy_error_model.py", lease.id)
             .args(["--timeout", "60", "--node-name", name, "--overlay"])
             .arg(&overlay)
             .arg("--model")
             .arg(&model)
-            .envs(ros_env(&py))
-            .env("ROS_DOMAIN_ID", lease.id.to_string())
-            .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-            .env_remove("ROS_LOCALHOST_ONLY")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()

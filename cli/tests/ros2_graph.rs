@@ -9,9 +9,9 @@
 
 mod common;
 
-use common::cell::rclpy_python;
+use common::cell::{rclpy_python, ros_python};
 use common::*;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 use volcal_nodes::ros::domain;
 
@@ -24,13 +24,8 @@ fn run_once(py: &std::path::Path, offset_s: f64, run: usize) -> f64 {
     let dir = volcal_tests::scratch(&format!("graph-{offset_s}-{run}"));
     let probe_s = 8.0 + (-offset_s).max(0.0);
     let start_probe = || {
-        Command::new(py)
-            .arg(repo().join("tests/py/ros2_graph.py"))
+        ros_python(py, "ros2_graph.py", lease.id)
             .args(["--seconds", &probe_s.to_string(), "--expect-nodes", &NODES.join(",")])
-            .envs(common::cell::ros_env(py))
-            .env("ROS_DOMAIN_ID", lease.id.to_string())
-            .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-            .env_remove("ROS_LOCALHOST_ONLY")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -127,16 +122,8 @@ fn a_restarted_node_is_named_again() {
         lease.id,
         &["station_setup_s:=4", "respawn_instruments:=true"],
     );
-    let probe = Command::new(&py)
-        .arg(repo().join("tests/py/ros2_graph.py"))
-        .args(["--seconds", "11"])
-        .envs(common::cell::ros_env(&py))
-        .env("ROS_DOMAIN_ID", lease.id.to_string())
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        .env_remove("ROS_LOCALHOST_ONLY")
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let probe =
+        ros_python(&py, "ros2_graph.py", lease.id).args(["--seconds", "11"]).stdout(Stdio::piped()).spawn().unwrap();
     launch.wait_for("the interferometer's start", Duration::from_secs(30), |l| l.contains("started interferometer"));
     std::thread::sleep(Duration::from_secs(3));
     let pid = launch.pid_of("interferometer").expect("interferometer pid");

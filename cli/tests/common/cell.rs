@@ -26,9 +26,20 @@ pub fn rclpy_python() -> Option<PathBuf> {
 }
 
 /// The environment of a ROS 2 Python process from the venv: its ament prefix and Fast DDS.
-pub fn ros_env(py: &Path) -> Vec<(&'static str, String)> {
+fn ros_env(py: &Path) -> Vec<(&'static str, String)> {
     let prefix = py.parent().and_then(Path::parent).unwrap().display().to_string();
     vec![("AMENT_PREFIX_PATH", prefix), ("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp".into())]
+}
+
+/// `py SCRIPT` from `tests/py/` as a ROS 2 process of the venv on `domain`, loopback only.
+pub fn ros_python(py: &Path, script: &str, domain: u16) -> Command {
+    let mut c = Command::new(py);
+    c.arg(super::repo().join("tests/py").join(script))
+        .envs(ros_env(py))
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env_remove("ROS_LOCALHOST_ONLY");
+    c
 }
 
 /// A running cell; stopped (SIGTERM) when dropped.
@@ -44,17 +55,12 @@ impl Cell {
     pub fn start(py: &Path, dir: &Path, domain: u16, args: &[&str]) -> Cell {
         let (log, ready) = (dir.join("cell_states.csv"), dir.join("cell.ready"));
         let _ = std::fs::remove_file(&ready);
-        let child = Command::new(py)
-            .arg(super::repo().join("tests/py/ros2_cell.py"))
+        let child = ros_python(py, "ros2_cell.py", domain)
             .arg("--log")
             .arg(&log)
             .arg("--ready")
             .arg(&ready)
             .args(args)
-            .envs(ros_env(py))
-            .env("ROS_DOMAIN_ID", domain.to_string())
-            .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-            .env_remove("ROS_LOCALHOST_ONLY")
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(dir.join("cell.err")).unwrap())
