@@ -207,3 +207,43 @@ fn a_target_never_reached_is_named() {
     assert!(out.contains("not reached: joint \"gantry_y_joint\" (axis y)"), "{out}");
     assert!(n > 0);
 }
+
+/// The tracer method on the cell (`cell_dry_run_tracer.yaml`): every planned range recorded, at
+/// coordinates the cell published, and the ranges consistent with them (chi2/dof of the solve).
+#[test]
+fn tracer_campaign_on_an_rclpy_cell() {
+    let Some(py) = rclpy_python() else { return };
+    let lease = domain::lease().unwrap();
+    let dir = volcal_tests::scratch("cell-tracer");
+    let bag = dir.join("bag");
+    let cell = Cell::start(&py, &dir, lease.id, &[]);
+    std::thread::sleep(Duration::from_secs(2));
+    let args = [JOINTS, "speed_mps:=1.0", "acceleration_mps2:=100"];
+    let (st, out) = Launch::start(&launch_config("cell_dry_run_tracer.yaml"), Some(&bag), lease.id, &args)
+        .wait(Duration::from_secs(600));
+    let states = cell.stop();
+    assert!(st.success(), "launch failed:\n{out}");
+    assert!(out.contains("the recorder confirmed all 432 acquired points"), "{out}");
+    let pairs = pairs(&bag);
+    assert_eq!(pairs.len(), 432);
+    assert!(pairs.iter().all(|p| p.kind == SyncedPair::KIND_RANGE));
+    let off = pairs
+        .iter()
+        .map(|p| {
+            states
+                .iter()
+                .map(|(_, s)| (0..3).map(|k| (s[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
+                .fold(f64::MAX, f64::min)
+        })
+        .fold(0.0, f64::max);
+    let machine = repo().join("launch_configs/machines/demo_cmm.yaml");
+    let (solved, _) = solve_cmd(&bag, &machine, &dir.join("model.json")).unwrap();
+    let r = solved.file.residuals.unwrap();
+    eprintln!(
+        "tracer on the cell: 432 ranges, largest distance of a pair to a published state {off:.3e} m; residual RMS {:.4} um, chi2/dof {:.3}",
+        r.rms_m * 1e6,
+        r.variance_factor
+    );
+    assert!(off < 1e-12, "a pair's coordinates are not what the cell published ({off} m)");
+    assert!(r.variance_factor < 1.5, "chi2/dof {} of the tracer campaign on the cell", r.variance_factor);
+}
