@@ -190,7 +190,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         }
         // A command is executed from where the cell says it is, once the cell's controller
         // listens: a trajectory written before its subscription is matched is lost.
-        let listening = node.remote_subscription_count(&traj_topic) > 0;
+        // (Asked only with a command waiting: it reads the participant's discovery tables.)
+        let listening = pending.is_some() && node.remote_subscription_count(&traj_topic) > 0;
         if pending.is_some() && !listening && !deaf_reported && now_ns() - started > (topic_timeout * 1e9) as i64 {
             log::warn!("no subscription on {traj_topic} yet: waiting for the cell (is its joint_trajectory_controller running?)");
             deaf_reported = true;
