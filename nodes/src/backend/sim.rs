@@ -365,27 +365,53 @@ impl DeflectorBackend for SimDeflector {
     }
 }
 
-/// The simulated machine: straight-line motion at the commanded speed; the actual reflector
-/// position from the true error model, with the repeatability drawn once per arrival.
-pub struct SimMachine {
+/// The actual reflector position of a simulated machine: exact while moving; at rest, with the
+/// repeatability drawn once per arrival (the same position for as long as the machine stays).
+/// The simulated machine and a cell's dry run (`machine_cell`) both play the machine this way.
+pub struct ActualReflector {
     vm: volcal_sim::VirtualMachine,
     rng: ChaCha8Rng,
+    at_rest: Option<(u64, Point3<f64>)>,
+}
+
+impl ActualReflector {
+    pub fn new(world: &SimWorld) -> ActualReflector {
+        ActualReflector { vm: world.cfg.machine.clone(), rng: world.rng(0x4d41_4348), at_rest: None }
+    }
+
+    /// The actual position for indicated coordinates `x`, offset `p`, during motion `id`.
+    pub fn at(&mut self, id: u64, settled: bool, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
+        if !settled {
+            return self.vm.exact(x, p);
+        }
+        match self.at_rest {
+            Some((i, a)) if i == id => a,
+            _ => {
+                let a = self.vm.actual(x, p, &mut self.rng);
+                self.at_rest = Some((id, a));
+                a
+            }
+        }
+    }
+}
+
+/// The simulated machine: straight-line motion at the commanded speed; the actual reflector
+/// position from the true error model ([`ActualReflector`]).
+pub struct SimMachine {
+    reflector: ActualReflector,
     from: Point3<f64>,
     cmd: MotionCommand,
     t0_ns: i64,
-    at_rest_actual: Option<(u64, Point3<f64>)>,
 }
 
 impl SimMachine {
     pub fn new(world: &SimWorld, now_ns: i64) -> SimMachine {
         let home = world.machine.layout.travel.centre();
         SimMachine {
-            vm: world.cfg.machine.clone(),
-            rng: world.rng(0x4d41_4348),
+            reflector: ActualReflector::new(world),
             from: home,
             cmd: MotionCommand { position_id: 0, target: home, probe_offset: Vector3::zeros(), speed_mps: 1.0 },
             t0_ns: now_ns,
-            at_rest_actual: None,
         }
     }
 
@@ -404,7 +430,6 @@ impl MachineBackend for SimMachine {
         self.from = here;
         self.cmd = *cmd;
         self.t0_ns = now_ns;
-        self.at_rest_actual = None;
         Ok(())
     }
 
@@ -433,18 +458,7 @@ impl MachineBackend for SimMachine {
 
     fn truth(&mut self, now_ns: i64) -> Option<Truth> {
         let s = self.state(now_ns);
-        let actual = if s.in_position {
-            match self.at_rest_actual {
-                Some((id, a)) if id == s.position_id => a,
-                _ => {
-                    let a = self.vm.actual(&s.position, &s.probe_offset, &mut self.rng);
-                    self.at_rest_actual = Some((s.position_id, a));
-                    a
-                }
-            }
-        } else {
-            self.vm.exact(&s.position, &s.probe_offset)
-        };
+        let actual = self.reflector.at(s.position_id, s.in_position, &s.position, &s.probe_offset);
         Some(Truth::Reflector {
             stamp_ns: now_ns,
             position_id: s.position_id,

@@ -26,11 +26,10 @@
 
 use super::runtime::TICK;
 use crate::backend::ros2_control::{trajectory, Arrival, JointMap, MotionLimits};
-use crate::backend::sim::SimWorld;
+use crate::backend::sim::{ActualReflector, SimWorld};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
-use rand_chacha::ChaCha8Rng;
 use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::{MachineCommand, MachinePosition, ReflectorTruth, Trigger};
 use volcal_msgs::sensor_msgs::msg::JointState;
@@ -61,31 +60,7 @@ struct Sample {
 }
 
 /// The machine's errors played for the simulated instruments (`dry_run`).
-struct DryRun {
-    vm: volcal_sim::VirtualMachine,
-    rng: ChaCha8Rng,
-    at_rest: Option<(u64, Point3<f64>)>,
-}
-
-impl DryRun {
-    /// The actual reflector position: at rest with the repeatability drawn once per arrival,
-    /// moving without it.
-    fn actual(&mut self, id: u64, settled: bool, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
-        if !settled {
-            return self.vm.exact(x, p);
-        }
-        match self.at_rest {
-            Some((i, a)) if i == id => a,
-            _ => {
-                let a = self.vm.actual(x, p, &mut self.rng);
-                self.at_rest = Some((id, a));
-                a
-            }
-        }
-    }
-}
-
-fn dry_run(node: &RosNode) -> Result<Option<DryRun>> {
+fn dry_run(node: &RosNode) -> Result<Option<ActualReflector>> {
     if !node.args.get_or("dry_run", false)? {
         return Ok(None);
     }
@@ -101,7 +76,7 @@ fn dry_run(node: &RosNode) -> Result<Option<DryRun>> {
         volcal_formats::truth_file::TruthFile::new(&truth, world.seed, world.machine.gauge).write(&path)?;
         log::info!("dry run: wrote the simulated machine's truth to {}", path.display());
     }
-    Ok(Some(DryRun { vm: world.cfg.machine.clone(), rng: world.rng(0x4d41_4348), at_rest: None }))
+    Ok(Some(ActualReflector::new(&world)))
 }
 
 fn position_msg(s: &Sample, m: Option<&Motion>, in_position: bool, trigger_id: u64) -> MachinePosition {
@@ -261,7 +236,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             };
             if let (Some(d), Some(t)) = (&mut dry, &truth) {
                 let (id, probe) = motion.as_ref().map_or((0, Vector3::zeros()), |m| (m.id, m.probe));
-                let actual = d.actual(id, in_position, &position, &probe);
+                let actual = d.at(id, in_position, &position, &probe);
                 t.publish(ReflectorTruth {
                     header: Header::at(stamp, "machine"),
                     position_id: id,
