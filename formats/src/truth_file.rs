@@ -21,6 +21,11 @@ pub struct TruthFile {
     pub beams: Vec<TruthBeam>,
     pub tracer_dead_path_m: f64,
     pub injected: Vec<InjectedTruth>,
+    /// For a campaign recorded by the sim node set: seconds of the campaign's clock (on which
+    /// drifts and the air run) per second of the recording's stamps. A drift of `v` per second
+    /// of the campaign appears in the recording as `v * campaign_time_scale` per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub campaign_time_scale: Option<f64>,
 }
 
 impl TruthFile {
@@ -39,6 +44,7 @@ impl TruthFile {
             beams: t.beams.clone(),
             tracer_dead_path_m: t.tracer_dead_path_m,
             injected: t.injected.clone(),
+            campaign_time_scale: None,
         }
     }
 

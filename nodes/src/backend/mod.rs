@@ -33,6 +33,7 @@
 //! the nodes subscribe to those topics only when [`InterferometerBackend::simulated`] (etc.) says
 //! so.
 
+pub mod injected;
 pub mod line;
 pub mod ros2_control;
 pub mod sim;
@@ -141,6 +142,8 @@ pub trait MachineBackend {
     fn next_change_ns(&self) -> Option<i64> {
         None
     }
+    /// An on-the-fly segment starts (`true`, the sequencer's `SEGMENT_START`) or ends.
+    fn on_the_fly(&mut self, _running: bool) {}
     /// Simulated backends: the actual reflector position at `now_ns` (`/sim/truth/reflector`).
     fn truth(&mut self, _now_ns: i64) -> Option<Truth> {
         None

@@ -7,12 +7,14 @@
 //! position including the machine's repeatability) travels on `/sim/truth/...` as [`Truth`].
 //! The solver never subscribes to those topics.
 
+use super::injected::{CampaignClock, Injected, OpticalSample, Zero};
 use super::*;
 use crate::ros::NodeArgs;
 use anyhow::{anyhow, Result};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;
+use volcal::campaign::ObsKind;
 use volcal::environment::AirIndexEquation;
 use volcal_formats::machine::{Machine, DEMO_MACHINE};
 use volcal_formats::plan::{load_plan, sim_config};
@@ -27,14 +29,18 @@ pub struct SimWorld {
     pub plan: Plan,
     pub cfg: SimConfig,
     pub seed: u64,
-    /// Time zero of the simulated laboratory (air drift), nanoseconds since the epoch.
-    pub epoch_ns: i64,
+    /// The laboratory's clock: air drift and every time-dependent injected effect run on it.
+    pub clock: CampaignClock,
+    /// Physics outside the rigid-body model ([`super::injected`]).
+    pub injected: Injected,
 }
 
 impl SimWorld {
     /// From node parameters `machine` (default: the built-in demo machine), `plan` (default: the
-    /// patent's example) and `seed` (default 1). The time origin is `VOLCAL_SIM_EPOCH_NS`
-    /// (set by `volcal launch` for all nodes) or now.
+    /// patent's example), `seed` (default 1), `inject` (effect specs, default none),
+    /// `time_scale` (campaign seconds per second of the run, default 1) and `air_rate_k_per_h`
+    /// (the air temperature's drift, default the machine file's). The time origin is
+    /// `VOLCAL_SIM_EPOCH_NS` (set by `volcal launch` for all nodes) or now.
     pub fn from_args(args: &NodeArgs) -> Result<SimWorld> {
         let machine = match args.path("machine")? {
             Some(p) => Machine::load(&p)?,
@@ -44,18 +50,47 @@ impl SimWorld {
         let seed: u64 = args.get_or("seed", 1)?;
         let epoch_ns =
             std::env::var("VOLCAL_SIM_EPOCH_NS").ok().and_then(|s| s.parse().ok()).unwrap_or_else(crate::ros::now_ns);
-        let cfg = sim_config(&machine, plan.clone(), seed);
-        Ok(SimWorld { machine, plan, cfg, seed, epoch_ns })
+        let time_scale: f64 = args.get_or("time_scale", 1.0)?;
+        if !(time_scale > 0.0 && time_scale.is_finite()) {
+            return Err(anyhow!("parameter time_scale: must be a positive number, got {time_scale}"));
+        }
+        let mut cfg = sim_config(&machine, plan.clone(), seed);
+        // (An empty value, a launch argument's default, keeps the machine file's.)
+        match args.get::<serde_yaml::Value>("air_rate_k_per_h")? {
+            None => {}
+            Some(serde_yaml::Value::String(s)) if s.is_empty() => {}
+            Some(v) => match v.as_f64().filter(|r| r.is_finite()) {
+                Some(rate) => cfg.environment.air_temp_rate_k_per_h = rate,
+                None => return Err(anyhow!("parameter air_rate_k_per_h: {v:?} is not a number of kelvin per hour")),
+            },
+        }
+        let injected = Injected::parse(&args.get_or("inject", String::new())?, &cfg, machine.layout.travel)?;
+        Ok(SimWorld { machine, plan, cfg, seed, clock: CampaignClock { epoch_ns, time_scale }, injected })
     }
 
-    /// Seconds of simulated laboratory time at `ns`.
+    /// Seconds of campaign time at `ns`.
     pub fn t_s(&self, ns: i64) -> f64 {
-        (ns - self.epoch_ns) as f64 * 1e-9
+        self.clock.t_s(ns)
     }
 
     /// An independent random stream for one component.
     pub fn rng(&self, component: u64) -> ChaCha8Rng {
         ChaCha8Rng::seed_from_u64(self.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ component)
+    }
+
+    /// Writes the truth a sim node knows of this world (the true error model and the injected
+    /// effects) to a truth file, for tests; never recorded in a bag.
+    pub fn write_truth(&self, path: &std::path::Path) -> Result<()> {
+        let truth = volcal_sim::Truth {
+            model: self.cfg.machine.truth.clone(),
+            beams: vec![],
+            stations: vec![],
+            tracer_dead_path_m: self.cfg.tracer.dead_path_m,
+            injected: self.injected.truth(),
+        };
+        let mut file = volcal_formats::truth_file::TruthFile::new(&truth, self.seed, self.machine.gauge);
+        file.campaign_time_scale = Some(self.clock.time_scale);
+        file.write(path)
     }
 }
 
@@ -155,7 +190,8 @@ impl Counter {
 /// The simulated fixed-beam interferometer.
 pub struct SimInterferometer {
     world_cfg: SimConfig,
-    epoch_ns: i64,
+    clock: CampaignClock,
+    injected: Injected,
     rng: ChaCha8Rng,
     /// Relative noise of the signal-strength reading.
     pub signal_noise: f64,
@@ -167,13 +203,17 @@ pub struct SimInterferometer {
     counted: Option<(i64, u32, u32)>,
     reflector: ReflectorHistory,
     counter: Counter,
+    /// Where the count of the current beam started, and the readings since (free-running
+    /// samples count as points for the injected effects).
+    zero: Option<(Zero, usize)>,
 }
 
 impl SimInterferometer {
     pub fn new(world: &SimWorld, signal_noise: f64) -> SimInterferometer {
         SimInterferometer {
             world_cfg: world.cfg.clone(),
-            epoch_ns: world.epoch_ns,
+            clock: world.clock,
+            injected: world.injected.clone(),
             rng: world.rng(0x494e_5446),
             signal_noise,
             ids: None,
@@ -181,6 +221,7 @@ impl SimInterferometer {
             counted: None,
             reflector: ReflectorHistory::default(),
             counter: Counter::default(),
+            zero: None,
         }
     }
 
@@ -219,13 +260,34 @@ impl InterferometerBackend for SimInterferometer {
         if self.counted != Some((since, s, b)) {
             self.counted = Some((since, s, b));
             self.counter.restart();
+            self.zero = None;
         }
         let d = lateral(&beam, &actual);
         let noise: f64 = self.rng.random_range(-1.0..1.0) * self.signal_noise;
         let signal = (self.world_cfg.deflector.signal_strength(d) * (1.0 + noise)).clamp(0.0, 1.0);
-        let length = beam.direction.dot(&(actual - beam.origin));
+        let t_s = self.clock.t_s(at_ns);
+        let air = self.world_cfg.environment.air_at(t_s);
+        let mut length = beam.direction.dot(&(actual - beam.origin));
+        if !self.injected.is_empty() {
+            let (zero, n) = *self.zero.get_or_insert((Zero { t_s, length_m: length, air }, 0));
+            self.injected.optical(
+                &OpticalSample {
+                    kind: ObsKind::Beam,
+                    station: s,
+                    line: b,
+                    index: point.map_or(n, |p| p as usize),
+                    t_s,
+                    direction: beam.direction,
+                    station_position: beam.origin,
+                    reflector: actual,
+                    air,
+                    zero,
+                },
+                &mut length,
+            );
+            self.zero = Some((zero, n + 1));
+        }
         let (rel, broken) = self.counter.count(length, signal, point);
-        let air = self.world_cfg.environment.air_at((at_ns - self.epoch_ns) as f64 * 1e-9);
         let value = self.world_cfg.interferometer.read(rel, 0.0, &air, &mut self.rng);
         Ok(Some(LengthReading { value_m: value, signal_strength: signal, beam_broken: broken }))
     }
@@ -254,6 +316,10 @@ impl InterferometerBackend for SimInterferometer {
 /// The simulated laser tracer: stations from the plan, ranges to the actual reflector.
 pub struct SimTracer {
     world_cfg: SimConfig,
+    clock: CampaignClock,
+    injected: Injected,
+    /// Where the current station's count started, and the readings since.
+    zero: Option<(Zero, usize)>,
     rng: ChaCha8Rng,
     stations: Vec<Point3<f64>>,
     station: Option<u32>,
@@ -269,6 +335,9 @@ impl SimTracer {
         let stations = world.plan.path_tasks(&travel).map_err(|e| anyhow!("{e}"))?.iter().map(|t| t.position).collect();
         Ok(SimTracer {
             world_cfg: world.cfg.clone(),
+            clock: world.clock,
+            injected: world.injected.clone(),
+            zero: None,
             rng: world.rng(0x5452_4143),
             stations,
             station: None,
@@ -288,6 +357,7 @@ impl TracerBackend for SimTracer {
         if self.station != Some(station) {
             self.station = Some(station);
             self.counter.restart();
+            self.zero = None;
         }
     }
 
@@ -298,7 +368,29 @@ impl TracerBackend for SimTracer {
             .get(station as usize)
             .ok_or_else(|| anyhow!("tracer station {station} is not in the plan ({} stations)", self.stations.len()))?;
         let Some(actual) = self.reflector.actual(at_ns, position_id) else { return Ok(None) };
-        let range = self.world_cfg.tracer.read(&q, &actual, &mut self.rng);
+        let mut range = (actual - q).norm();
+        if !self.injected.is_empty() {
+            let t_s = self.clock.t_s(at_ns);
+            let air = self.world_cfg.environment.air_at(t_s);
+            let (zero, n) = *self.zero.get_or_insert((Zero { t_s, length_m: range, air }, 0));
+            self.injected.optical(
+                &OpticalSample {
+                    kind: ObsKind::Range,
+                    station,
+                    line: 0,
+                    index: point.map_or(n, |p| p as usize),
+                    t_s,
+                    direction: (actual - q) / range,
+                    station_position: q,
+                    reflector: actual,
+                    air,
+                    zero,
+                },
+                &mut range,
+            );
+            self.zero = Some((zero, n + 1));
+        }
+        let range = self.world_cfg.tracer.read_range(range, &mut self.rng);
         // The tracer keeps its count unless the reflector leaves its view; the counter models
         // re-establishment with a new dead path.
         let (_, broken) = self.counter.count(0.0, 1.0, point);
@@ -365,40 +457,94 @@ impl DeflectorBackend for SimDeflector {
     }
 }
 
-/// The actual reflector position of a simulated machine: exact while moving; at rest, with the
-/// repeatability drawn once per arrival (the same position for as long as the machine stays).
-/// The simulated machine and a cell's dry run (`machine_cell`) both play the machine this way.
+/// The actual reflector position of a simulated machine: at rest, with the repeatability drawn
+/// once per arrival (the same position for as long as the machine stays), and the path leaving
+/// it offset alike;
+/// the injected machine-side effects on top ([`super::injected`]). The simulated machine and a
+/// cell's dry run (`machine_cell`) both play the machine this way.
 pub struct ActualReflector {
     vm: volcal_sim::VirtualMachine,
     rng: ChaCha8Rng,
+    injected: Injected,
+    clock: CampaignClock,
     at_rest: Option<(u64, Point3<f64>)>,
+    /// Unit direction of the last move (backlash acts against it), zero before the first.
+    motion: Vector3<f64>,
+    /// The repeatability drawn at the last rest (actual minus exact position): it holds until
+    /// the machine settles again, so the path leaving a rest is continuous with it.
+    scatter: Vector3<f64>,
+    /// Inside an on-the-fly run: the scatter of its start holds at its turns and end too (a
+    /// continuous run does not settle anew; a fresh draw at a turn would put a step into the
+    /// readings that no machine makes).
+    continuous: bool,
 }
 
 impl ActualReflector {
     pub fn new(world: &SimWorld) -> ActualReflector {
-        ActualReflector { vm: world.cfg.machine.clone(), rng: world.rng(0x4d41_4348), at_rest: None }
+        ActualReflector {
+            vm: world.cfg.machine.clone(),
+            rng: world.rng(0x4d41_4348),
+            injected: world.injected.clone(),
+            clock: world.clock,
+            at_rest: None,
+            motion: Vector3::zeros(),
+            scatter: Vector3::zeros(),
+            continuous: false,
+        }
     }
 
-    /// The actual position for indicated coordinates `x`, offset `p`, during motion `id`.
-    pub fn at(&mut self, id: u64, settled: bool, x: &Point3<f64>, p: &Vector3<f64>) -> Point3<f64> {
-        if !settled {
-            return self.vm.exact(x, p);
+    /// An on-the-fly run starts (`true`) or ends.
+    pub fn set_continuous(&mut self, on: bool) {
+        self.continuous = on;
+    }
+
+    /// The actual position at `now_ns` for indicated coordinates `x`, declared offset `p` and
+    /// velocity `v`, during motion `id`.
+    pub fn at(
+        &mut self,
+        now_ns: i64,
+        id: u64,
+        settled: bool,
+        x: &Point3<f64>,
+        p: &Vector3<f64>,
+        v: &Vector3<f64>,
+    ) -> Point3<f64> {
+        let speed = v.norm();
+        if speed > 0.0 {
+            self.motion = v / speed;
         }
-        match self.at_rest {
-            Some((i, a)) if i == id => a,
-            _ => {
-                let a = self.vm.actual(x, p, &mut self.rng);
-                self.at_rest = Some((id, a));
-                a
+        if settled {
+            if let Some((i, a)) = self.at_rest {
+                if i == id {
+                    return a;
+                }
             }
         }
+        let t_s = self.clock.t_s(now_ns);
+        let p_actual = self.injected.probe_offset(t_s, x, p, &self.motion);
+        let exact = self.vm.exact(x, &p_actual);
+        let mut a = if settled && !self.continuous {
+            let a = self.vm.actual(x, &p_actual, &mut self.rng);
+            self.scatter = a - exact;
+            a
+        } else {
+            exact + self.scatter
+        };
+        self.injected.actual(t_s, x, p, v, &self.motion, &mut a);
+        if settled {
+            self.at_rest = Some((id, a));
+        }
+        a
     }
 }
 
 /// The simulated machine: straight-line motion at the commanded speed; the actual reflector
-/// position from the true error model ([`ActualReflector`]).
+/// position from the true error model ([`ActualReflector`]); the coordinates it reports as the
+/// injected recording-side effects (a latency, warm scales) leave them.
 pub struct SimMachine {
     reflector: ActualReflector,
+    injected: Injected,
+    clock: CampaignClock,
     from: Point3<f64>,
     cmd: MotionCommand,
     t0_ns: i64,
@@ -409,6 +555,8 @@ impl SimMachine {
         let home = world.machine.layout.travel.centre();
         SimMachine {
             reflector: ActualReflector::new(world),
+            injected: world.injected.clone(),
+            clock: world.clock,
             from: home,
             cmd: MotionCommand { position_id: 0, target: home, probe_offset: Vector3::zeros(), speed_mps: 1.0 },
             t0_ns: now_ns,
@@ -419,21 +567,9 @@ impl SimMachine {
         let d = (self.cmd.target - self.from).norm();
         self.t0_ns + (d / self.cmd.speed_mps * 1e9) as i64
     }
-}
 
-impl MachineBackend for SimMachine {
-    fn move_to(&mut self, cmd: &MotionCommand, now_ns: i64) -> Result<()> {
-        if !(cmd.speed_mps > 0.0 && cmd.speed_mps.is_finite()) {
-            anyhow::bail!("motion {}: speed {} m/s is not a positive number", cmd.position_id, cmd.speed_mps);
-        }
-        let here = self.state(now_ns).position;
-        self.from = here;
-        self.cmd = *cmd;
-        self.t0_ns = now_ns;
-        Ok(())
-    }
-
-    fn state(&mut self, now_ns: i64) -> MachineState {
+    /// Where the machine is by its scales (the coordinates of the true error model).
+    fn kinematic(&self, now_ns: i64) -> MachineState {
         let arrive = self.arrival_ns();
         let (position, velocity, in_position) = if now_ns >= arrive {
             (self.cmd.target, Vector3::zeros(), true)
@@ -451,14 +587,38 @@ impl MachineBackend for SimMachine {
             position_id: self.cmd.position_id,
         }
     }
+}
+
+impl MachineBackend for SimMachine {
+    fn move_to(&mut self, cmd: &MotionCommand, now_ns: i64) -> Result<()> {
+        if !(cmd.speed_mps > 0.0 && cmd.speed_mps.is_finite()) {
+            anyhow::bail!("motion {}: speed {} m/s is not a positive number", cmd.position_id, cmd.speed_mps);
+        }
+        let here = self.kinematic(now_ns).position;
+        self.from = here;
+        self.cmd = *cmd;
+        self.t0_ns = now_ns;
+        Ok(())
+    }
+
+    fn state(&mut self, now_ns: i64) -> MachineState {
+        let s = self.kinematic(now_ns);
+        let t_s = self.clock.t_s(now_ns);
+        let (position, _) = self.injected.record(t_s, &s.position, &s.probe_offset, &s.velocity, None);
+        MachineState { position, ..s }
+    }
 
     fn next_change_ns(&self) -> Option<i64> {
         Some(self.arrival_ns())
     }
 
+    fn on_the_fly(&mut self, running: bool) {
+        self.reflector.set_continuous(running);
+    }
+
     fn truth(&mut self, now_ns: i64) -> Option<Truth> {
-        let s = self.state(now_ns);
-        let actual = self.reflector.at(s.position_id, s.in_position, &s.position, &s.probe_offset);
+        let s = self.kinematic(now_ns);
+        let actual = self.reflector.at(now_ns, s.position_id, s.in_position, &s.position, &s.probe_offset, &s.velocity);
         Some(Truth::Reflector {
             stamp_ns: now_ns,
             position_id: s.position_id,
@@ -469,24 +629,29 @@ impl MachineBackend for SimMachine {
     }
 }
 
-/// Simulated environment sensors (`EnvironmentSim` of the machine file).
+/// Simulated environment sensors (`EnvironmentSim` of the machine file), on the campaign clock;
+/// the machine temperature as the injected effects leave it (warm scales).
 pub struct SimEnvironment {
     env: volcal_sim::EnvironmentSim,
-    epoch_ns: i64,
+    clock: CampaignClock,
+    injected: Injected,
 }
 
 impl SimEnvironment {
     pub fn new(world: &SimWorld) -> SimEnvironment {
-        SimEnvironment { env: world.cfg.environment.clone(), epoch_ns: world.epoch_ns }
+        SimEnvironment { env: world.cfg.environment.clone(), clock: world.clock, injected: world.injected.clone() }
     }
 }
 
 impl EnvironmentBackend for SimEnvironment {
     fn read(&mut self, now_ns: i64) -> Result<EnvironmentSample> {
-        let t = (now_ns - self.epoch_ns) as f64 * 1e-9;
+        let t = self.clock.t_s(now_ns);
+        let temp = self.env.record_machine_temp.then_some(self.env.machine_temp_c);
+        let (_, machine_temp_c) =
+            self.injected.record(t, &Point3::origin(), &Vector3::zeros(), &Vector3::zeros(), temp);
         Ok(EnvironmentSample {
             air: self.env.record_air.then(|| self.env.air_at(t)),
-            machine_temp_c: self.env.record_machine_temp.then_some(self.env.machine_temp_c),
+            machine_temp_c,
             materials: Vec::new(),
         })
     }

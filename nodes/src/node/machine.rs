@@ -8,7 +8,8 @@
 //! the actual reflector position on `/sim/truth/reflector` alongside.
 //!
 //! Parameters: `backend` (sim, or ros2_control: see [`super::machine_cell`]), `rate_hz` (100), `idle_rate_hz` (2), `batch` (1), and for the
-//! sim backend `machine`, `seed`.
+//! sim backend `machine`, `seed`, `inject`, `time_scale`, `truth` (a path: the true error model
+//! and the injected effects are written there; empty: none). See [`crate::backend::injected`].
 
 use super::runtime::{check_backend, secs, TICK};
 use crate::backend::sim::{SimMachine, SimWorld};
@@ -28,6 +29,10 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     }
     check_backend(node)?;
     let world = SimWorld::from_args(&node.args)?;
+    if let Some(path) = node.args.path("truth")? {
+        world.write_truth(&path)?;
+        log::info!("wrote the simulated machine's truth to {}", path.display());
+    }
     run_with(node, SimMachine::new(&world, now_ns()), true)
 }
 
@@ -124,6 +129,15 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             due = due.min(t);
         }
         node.wait(secs((due - now_ns()) as f64 * 1e-9).min(TICK));
+        // Segment triggers before commands: the sequencer starts a segment before its run.
+        let mut latch = Vec::new();
+        while let Some(t) = triggers.next() {
+            if t.trigger_type == trigger_type::SEGMENT_START || t.trigger_type == trigger_type::SEGMENT_END {
+                backend.on_the_fly(t.trigger_type == trigger_type::SEGMENT_START);
+            } else if t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE {
+                latch.push(t);
+            }
+        }
         while let Some(c) = commands.next() {
             let target = Point3::new(c.x_m, c.y_m, c.z_m);
             let now = now_ns();
@@ -194,10 +208,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             publish_truth(&mut backend, now)?;
             next_truth = next_truth.max(now - moving_ns) + moving_ns;
         }
-        while let Some(t) = triggers.next() {
-            if t.trigger_type != trigger_type::POINT && t.trigger_type != trigger_type::PROBE {
-                continue;
-            }
+        for t in latch {
             // Latch the coordinates at the trigger.
             let now = now_ns();
             let s = backend.state(now);

@@ -66,14 +66,7 @@ fn dry_run(node: &RosNode) -> Result<Option<ActualReflector>> {
     }
     let world = SimWorld::from_args(&node.args)?;
     if let Some(path) = node.args.path("truth")? {
-        let truth = volcal_sim::Truth {
-            model: world.cfg.machine.truth.clone(),
-            beams: vec![],
-            stations: vec![],
-            tracer_dead_path_m: 0.0,
-            injected: vec![],
-        };
-        volcal_formats::truth_file::TruthFile::new(&truth, world.seed, world.machine.gauge).write(&path)?;
+        world.write_truth(&path)?;
         log::info!("dry run: wrote the simulated machine's truth to {}", path.display());
     }
     Ok(Some(ActualReflector::new(&world)))
@@ -236,7 +229,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             };
             if let (Some(d), Some(t)) = (&mut dry, &truth) {
                 let (id, probe) = motion.as_ref().map_or((0, Vector3::zeros()), |m| (m.id, m.probe));
-                let actual = d.at(id, in_position, &position, &probe);
+                let actual = d.at(stamp, id, in_position, &position, &probe, &velocity);
                 t.publish(ReflectorTruth {
                     header: Header::at(stamp, "machine"),
                     position_id: id,

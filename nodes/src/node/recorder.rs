@@ -6,7 +6,9 @@
 //! Parameters: `bag` (directory to create; required), `flush_period_s` (0.5), `clock_offset_s`
 //! (machine clock minus instrument clock, 0), `max_gap_s` (largest machine-sample interval for
 //! interpolation, 0.05), `horizon_s` (how long incomplete pairs wait, 10), `publish_pairs`
-//! (true), `record_truth` (false: the simulation truth topics are not recorded), `drain_s`
+//! (true), `record_truth` (false: the simulation truth topics are not recorded), `conceal`
+//! (false; true refuses `record_truth`, so that nothing in the bag reveals what a simulation
+//! injected: the bag holds what a real acquisition would), `drain_s`
 //! (0.3) and `drain_max_s` (5): after a stop request the recorder keeps receiving until no
 //! message has arrived for `drain_s`, for at most `drain_max_s`. The launch stops every node at
 //! once, so the last on-the-fly segment's readings, machine samples and end trigger may still be
@@ -99,6 +101,12 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     };
     let publish_pairs: bool = node.args.get_or("publish_pairs", true)?;
     let record_truth: bool = node.args.get_or("record_truth", false)?;
+    let conceal: bool = node.args.get_or("conceal", false)?;
+    if record_truth && conceal {
+        return Err(anyhow!(
+            "parameters record_truth and conceal exclude each other: a concealed bag holds no simulation truth"
+        ));
+    }
     let drain = secs(node.args.get_or("drain_s", 0.3)?);
     let drain_max = secs(node.args.get_or("drain_max_s", 5.0)?);
     node.warn_unused_parameters();

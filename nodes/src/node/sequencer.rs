@@ -19,7 +19,8 @@
 //! the segment's end trigger), on `/campaign/pairs`; then it exits, which ends a
 //! `volcal launch` whose sequencer has `on_exit: shutdown`.
 //!
-//! Parameters: `machine`, `plan` (default: the patent's example), `speed_mps`, `dwell_s`,
+//! Parameters: `machine`, `plan` (default: the patent's example), `speed_mps` (replaces the
+//! plan's speed and scales its per-line `speeds_mps` alike), `dwell_s`,
 //! `station_setup_s`, `settle_timeout_s` (override the plan's timing), `response_timeout_s` (2),
 //! `retries` (15), `topic_timeout_s` (10), `wait_for_recorder` (true), `finish_timeout_s` (10),
 //! `probe_step_m` (0.4e-3), `recentre_below` (0.99).
@@ -50,6 +51,9 @@ use volcal_sim::{Acquisition, Method, Plan};
 #[derive(Clone, Debug)]
 pub struct Settings {
     pub speed_mps: f64,
+    /// The plan's per-line speed cycle (`speeds_mps`) scaled by `speed_mps` over the plan's
+    /// speed: line `i` runs at `line_speeds[i % len]` (empty: all at `speed_mps`).
+    pub line_speeds: Vec<f64>,
     pub dwell_s: f64,
     pub station_setup_s: f64,
     pub on_the_fly: bool,
@@ -57,6 +61,35 @@ pub struct Settings {
     pub retries: u32,
     pub probe_step_m: f64,
     pub recentre_below: f64,
+}
+
+/// Indices of the first and last abscissae and of every one where the motion reverses.
+fn turning_points(abscissae: &[f64]) -> Vec<usize> {
+    let mut out = vec![0];
+    let mut last_sign = 0.0;
+    for k in 1..abscissae.len() {
+        let step = abscissae[k] - abscissae[k - 1];
+        if step != 0.0 {
+            if step.signum() == -last_sign {
+                out.push(k - 1);
+            }
+            last_sign = step.signum();
+        }
+    }
+    if abscissae.len() > 1 {
+        out.push(abscissae.len() - 1);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn turning_points_of_one_way_and_out_and_back_lines() {
+        assert_eq!(super::turning_points(&[0.0, 1.0, 2.0]), vec![0, 2]);
+        assert_eq!(super::turning_points(&[0.0, 1.0, 2.0, 2.0, 1.0, 0.0]), vec![0, 3, 5]);
+        assert_eq!(super::turning_points(&[0.0]), vec![0]);
+    }
 }
 
 /// A latched reading as the sequencer sees it.
@@ -396,7 +429,17 @@ impl<'a> Link<'a> {
         Ok(())
     }
 
-    fn run_beam(&mut self, task: &BeamTask, acquired: &mut Vec<u64>) -> Result<()> {
+    /// The speed of the measuring moves of line `i` (the plan's speed cycle, scaled).
+    fn line_speed(&self, i: usize) -> f64 {
+        let v = &self.settings.line_speeds;
+        if v.is_empty() {
+            self.settings.speed_mps
+        } else {
+            v[i % v.len()]
+        }
+    }
+
+    fn run_beam(&mut self, i: usize, task: &BeamTask, acquired: &mut Vec<u64>) -> Result<()> {
         self.point_beam(task)?;
         let dir = task_direction(task);
         let p = task.probe_offset;
@@ -404,13 +447,29 @@ impl<'a> Link<'a> {
         let mut last_signal = 0.0;
         let nominal = |s: f64| task.pivot + dir * s - p;
         if self.settings.on_the_fly {
-            let (s0, s1) = (task.abscissae[0], *task.abscissae.last().unwrap());
-            let c1 = self.centre(nominal(s1), &p, task, task.abscissae.len() as u32 - 1)?;
-            let c0 = self.centre(nominal(s0), &p, task, 0)?;
-            let pos = self.move_to(c0, &p, self.settings.speed_mps)?;
+            // The machine runs through the turning points of the abscissae (out and back for a
+            // bidirectional beam), each centred on the beam first, the far ones first so that
+            // the run starts where the centring ends.
+            let turns = turning_points(&task.abscissae);
+            let mut centred = Vec::with_capacity(turns.len());
+            for &k in turns.iter().rev() {
+                let c = match centred
+                    .iter()
+                    .find(|(kk, _): &&(usize, Point3<f64>)| task.abscissae[*kk] == task.abscissae[k])
+                {
+                    Some((_, c)) => *c,
+                    None => self.centre(nominal(task.abscissae[k]), &p, task, k as u32)?,
+                };
+                centred.push((k, c));
+            }
+            centred.reverse();
+            let pos = self.move_to(centred[0].1, &p, self.settings.speed_mps)?;
             let kind = Trigger::KIND_BEAM;
             self.send_trigger(trigger_type::SEGMENT_START, kind, task.station, task.beam, 0, pos)?;
-            let pos = self.move_to(c1, &p, self.settings.speed_mps)?;
+            let mut pos = pos;
+            for (_, c) in &centred[1..] {
+                pos = self.move_to(*c, &p, self.line_speed(i))?;
+            }
             // The recorder's pairs of this segment carry this id: the campaign waits for them
             // as it waits for the static points' pairs.
             let end = self.send_trigger(trigger_type::SEGMENT_END, kind, task.station, task.beam, 0, pos)?;
@@ -424,7 +483,7 @@ impl<'a> Link<'a> {
             if k == 0 {
                 target = self.centre(target, &p, task, k32)?;
             }
-            let mut pos = self.move_to(target, &p, self.settings.speed_mps)?;
+            let mut pos = self.move_to(target, &p, self.line_speed(i))?;
             self.dwell()?;
             if k == 1 || (k > 1 && last_signal < self.settings.recentre_below) {
                 let (_, sig) =
@@ -445,9 +504,9 @@ impl<'a> Link<'a> {
         Ok(())
     }
 
-    fn run_path(&mut self, task: &PathTask, acquired: &mut Vec<u64>) -> Result<()> {
+    fn run_path(&mut self, i: usize, task: &PathTask, acquired: &mut Vec<u64>) -> Result<()> {
         for (k, x) in task.points.iter().enumerate() {
-            let pos = self.move_to(*x, &task.probe_offset, self.settings.speed_mps)?;
+            let pos = self.move_to(*x, &task.probe_offset, self.line_speed(i))?;
             self.dwell()?;
             let (id, _) =
                 self.trigger_reading(trigger_type::POINT, Trigger::KIND_RANGE, task.station, task.path, k as u32, pos)?;
@@ -499,8 +558,10 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         Acquisition::Static { speed_mps, dwell_s } => (speed_mps, dwell_s),
         Acquisition::OnTheFly { speed_mps } => (speed_mps, 0.0),
     };
+    let speed_mps: f64 = args.get_or("speed_mps", plan_speed)?;
     let settings = Settings {
-        speed_mps: args.get_or("speed_mps", plan_speed)?,
+        speed_mps,
+        line_speeds: plan.speeds_mps.iter().map(|v| v * speed_mps / plan_speed).collect(),
         dwell_s: args.get_or("dwell_s", plan_dwell)?,
         station_setup_s: args.get_or("station_setup_s", plan.station_setup_s)?,
         on_the_fly,
@@ -509,8 +570,12 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         probe_step_m: args.get_or("probe_step_m", 0.4e-3)?,
         recentre_below: args.get_or("recentre_below", 0.99)?,
     };
-    if !(settings.speed_mps > 0.0) {
-        bail!("parameter speed_mps: must be positive, got {}", settings.speed_mps);
+    if !(settings.speed_mps > 0.0) || settings.line_speeds.iter().any(|v| !(*v > 0.0 && v.is_finite())) {
+        bail!(
+            "parameter speed_mps ({}) and the plan's speed ({plan_speed}) and speeds_mps ({:?}) must be positive",
+            settings.speed_mps,
+            plan.speeds_mps
+        );
     }
     let topic_timeout = secs(args.get_or("topic_timeout_s", 10.0)?);
     let finish_timeout = secs(args.get_or("finish_timeout_s", 10.0)?);
@@ -554,7 +619,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut acquired = Vec::new();
     let result = (|| -> Result<()> {
         let mut station = u32::MAX;
-        for task in &beams {
+        for (i, task) in beams.iter().enumerate() {
             if task.station != station {
                 if station != u32::MAX {
                     link.station_setup(task.station, task.beam)?;
@@ -562,14 +627,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 station = task.station;
             }
             link.status(SequencerStatus::RUNNING, task.station, task.beam, "")?;
-            link.run_beam(task, &mut acquired)?;
+            link.run_beam(i, task, &mut acquired)?;
         }
         for (i, task) in paths.iter().enumerate() {
             if i > 0 {
                 link.station_setup(task.station, task.path)?;
             }
             link.status(SequencerStatus::RUNNING, task.station, task.path, "")?;
-            link.run_path(task, &mut acquired)?;
+            link.run_path(i, task, &mut acquired)?;
         }
         Ok(())
     })();
