@@ -55,6 +55,8 @@ pub trait InterferometerBackend {
     /// triggered reading (`None` for free-running samples). `Ok(None)`: no reading possible
     /// yet (e.g. the reflector is still moving); the node retries shortly.
     fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>>;
+    /// An on-the-fly segment started at `stamp_ns` (the sequencer's `SEGMENT_START`).
+    fn segment_start(&mut self, _stamp_ns: i64) {}
     /// Simulation truth (only simulated backends use it).
     fn truth(&mut self, _t: &Truth) {}
     /// Whether the node must subscribe to the simulation truth topics.

@@ -206,6 +206,8 @@ pub struct SimInterferometer {
     /// Where the count of the current beam started, and the readings since (free-running
     /// samples count as points for the injected effects).
     zero: Option<(Zero, usize)>,
+    /// The current on-the-fly segment: its start and the samples read in it since.
+    segment: Option<(i64, usize)>,
 }
 
 impl SimInterferometer {
@@ -222,6 +224,7 @@ impl SimInterferometer {
             reflector: ReflectorHistory::default(),
             counter: Counter::default(),
             zero: None,
+            segment: None,
         }
     }
 
@@ -253,6 +256,10 @@ impl InterferometerBackend for SimInterferometer {
         self.ids = Some((station, beam));
     }
 
+    fn segment_start(&mut self, stamp_ns: i64) {
+        self.segment = Some((stamp_ns, 0));
+    }
+
     fn read(&mut self, at_ns: i64, point: Option<u32>, position_id: Option<u64>) -> Result<Option<LengthReading>> {
         // `None` until the true beam (and the reflector truth) for this reading have arrived.
         let Some((since, s, b, beam)) = self.beam_for(at_ns, position_id.is_some()) else { return Ok(None) };
@@ -270,12 +277,21 @@ impl InterferometerBackend for SimInterferometer {
         let mut length = beam.direction.dot(&(actual - beam.origin));
         if !self.injected.is_empty() {
             let (zero, n) = *self.zero.get_or_insert((Zero { t_s, length_m: length, air }, 0));
+            // A free-running sample's place in its line: its number in the on-the-fly segment.
+            let index = match (point, &mut self.segment) {
+                (Some(p), _) => p as usize,
+                (None, Some((start, k))) if at_ns >= *start => {
+                    *k += 1;
+                    *k - 1
+                }
+                (None, _) => n,
+            };
             self.injected.optical(
                 &OpticalSample {
                     kind: ObsKind::Beam,
                     station: s,
                     line: b,
-                    index: point.map_or(n, |p| p as usize),
+                    index,
                     t_s,
                     direction: beam.direction,
                     station_position: beam.origin,
@@ -604,7 +620,13 @@ impl MachineBackend for SimMachine {
     fn state(&mut self, now_ns: i64) -> MachineState {
         let s = self.kinematic(now_ns);
         let t_s = self.clock.t_s(now_ns);
-        let (position, _) = self.injected.record(t_s, &s.position, &s.probe_offset, &s.velocity, None);
+        // The velocity the recording-side effects see is the mean over the last millisecond,
+        // so that a latency below it reports exactly where the machine was that much earlier,
+        // at the corners of a motion too (at rest before a start, still moving before an
+        // arrival).
+        const WINDOW_NS: i64 = 1_000_000;
+        let mean_velocity = (s.position - self.kinematic(now_ns - WINDOW_NS).position) / (WINDOW_NS as f64 * 1e-9);
+        let (position, _) = self.injected.record(t_s, &s.position, &s.probe_offset, &mean_velocity, None);
         MachineState { position, ..s }
     }
 

@@ -88,7 +88,9 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
             }
         }
         let now = now_ns();
-        pending.take_from(&mut triggers, now);
+        for start in pending.take_from(&mut triggers, now) {
+            backend.segment_start(start);
+        }
         pending.service(now, |t| {
             let Some(r) = backend.read(now, Some(t.point), Some(t.position_id))? else { return Ok(false) };
             out.publish(abscissa(now, ids_at(&ids_history, i64::MAX), &r, t.trigger_id))

@@ -19,13 +19,21 @@ impl PendingTriggers {
         PendingTriggers { kind, timeout_ns, pending: Vec::new() }
     }
 
-    /// Takes the new point and probe triggers of this kind (received at `now_ns`).
-    pub fn take_from(&mut self, sub: &mut Inbox<Trigger>, now_ns: i64) {
+    /// Takes the new point and probe triggers of this kind (received at `now_ns`); returns the
+    /// stamps of the on-the-fly segments of this kind that started.
+    pub fn take_from(&mut self, sub: &mut Inbox<Trigger>, now_ns: i64) -> Vec<i64> {
+        let mut starts = Vec::new();
         while let Some(t) = sub.next() {
-            if t.kind == self.kind && (t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE) {
+            if t.kind != self.kind {
+                continue;
+            }
+            if t.trigger_type == trigger_type::POINT || t.trigger_type == trigger_type::PROBE {
                 self.pending.push((t, now_ns));
+            } else if t.trigger_type == trigger_type::SEGMENT_START {
+                starts.push(t.header.stamp.to_nanos());
             }
         }
+        starts
     }
 
     /// Offers each pending trigger to `latch`, which returns whether it could read.
