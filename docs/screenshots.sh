@@ -7,8 +7,12 @@
 #                   (launch_configs/sim_campaign_short.yaml on a ROS domain of its own, this host
 #                   only), its recording stopped during the third station
 #   docs/diagnose.png first screen of `volcal diagnose --rerun` on bags/concealed/setup_drift.csv
+#   docs/live_diagnosis.png the viz node at the end of a short campaign with a beam break
+#                   concealed (station 1 beam 4), diagnosed live by the solver node
+#                   (launch_configs/live_diagnosis.yaml): the flagged beam, the residual RMS per
+#                   beam before and after the refit, the RMS history
 #
-# usage: docs/screenshots.sh [solve|diagnose|live]   (default: all three)
+# usage: docs/screenshots.sh [solve|diagnose|live|live_diagnosis]   (default: all four)
 # needs: xvfb-run and a Vulkan driver (apt-get install xvfb mesa-vulkan-drivers libvulkan1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -50,7 +54,7 @@ volcal diagnose bags/concealed/setup_drift.csv --machine launch_configs/machines
   --rerun "$work/diagnose.rrd" >/dev/null
 render "$work/diagnose.rrd" docs/diagnose.png
 fi
-[ "$which" = all ] || [ "$which" = live ] || exit 0
+[ "$which" = all ] || [ "$which" = live ] || [ "$which" = live_diagnosis ] || exit 0
 
 # The live view: the viz node (saving its view) and the campaign, on a ROS domain leased as the
 # tests lease theirs (a lock file per id), so that nothing else on this host joins.
@@ -60,6 +64,26 @@ for id in $(seq 101 232); do
   if flock -n 9; then domain=$id; break; fi
 done
 [ -n "${domain:-}" ] || { echo "no free ROS domain id in 101..232" >&2; exit 1; }
+if [ "$which" = all ] || [ "$which" = live_diagnosis ]; then
+dm=launch_configs/machines/diagnosis_cmm.yaml
+"$bin/volcal" launch launch_configs/live_diagnosis.yaml --domain "$domain" machine:="$dm" >"$work/solver.log" 2>&1 &
+solver=$!
+"$bin/volcal" launch launch_configs/viz.yaml --domain "$domain" machine:="$dm" rerun:="$work/live_diagnosis.rrd" >"$work/viz.log" 2>&1 &
+viz=$!
+for _ in $(seq 600); do grep -q "showing the campaign live" "$work/viz.log" && break; sleep 0.1; done
+sleep 2
+"$bin/volcal" launch launch_configs/sim_campaign_short.yaml --bag "$work/bag_diag" --domain "$domain" machine:="$dm" \
+  seed:=20 inject:=beam_break:station=1,beam=4,index=10,step_m=-1.3e-6 conceal:=true station_setup_s:=3 \
+  >"$work/campaign.log" 2>&1
+for _ in $(seq 600); do grep -q "published the final diagnosis" "$work/solver.log" && break; sleep 0.1; done
+sleep 2
+kill -INT "$viz" "$solver"
+wait "$viz" || { cat "$work/viz.log" >&2; exit 1; }
+wait "$solver" || true
+grep "published the" "$work/solver.log" || true
+render "$work/live_diagnosis.rrd" docs/live_diagnosis.png
+fi
+[ "$which" = all ] || [ "$which" = live ] || exit 0
 "$bin/volcal" launch launch_configs/viz.yaml --domain "$domain" rerun:="$work/live.rrd" >"$work/viz.log" 2>&1 &
 viz=$!
 for _ in $(seq 600); do grep -q "showing the campaign live" "$work/viz.log" && break; sleep 0.1; done

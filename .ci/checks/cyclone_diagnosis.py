@@ -1,15 +1,17 @@
 #!/usr/bin/env python3
 """CycloneDDS subscriber of /diagnosis (the solver node's diagnosis, transient-local).
 
-Usage: cyclone_diagnosis.py DOMAIN TIMEOUT_S
+Usage: cyclone_diagnosis.py DOMAIN TIMEOUT_S [all]
 
 Joins DDS domain DOMAIN on the loopback interface only and reads the DDS topic `rt/diagnosis`
 with the DDS type `volcal_msgs::msg::dds_::Diagnosis_` (ROS 2's names for the topic /diagnosis of
 type volcal_msgs/msg/Diagnosis), declared here independently of volcal from the .msg files
-(Diagnosis, DiagnosedEffect, EffectParameter, ResidualLocation), with a transient-local reader
+(Diagnosis, DiagnosedEffect, EffectParameter, ResidualLocation, LineResidual), with a transient-local reader
 so that a diagnosis published before this reader matched still arrives. Prints {"ready": true}
 once the reader exists, then the first sample as one JSON line (every double also as its IEEE
-754 bits, exact whatever the JSON parser), or {"received": 0} after TIMEOUT_S.
+754 bits, exact whatever the JSON parser), or {"received": 0} after TIMEOUT_S. With `all`
+(a live campaign), every sample as it arrives, each with "received_unix_s" (this process's wall
+clock at reception), until one that is not partial (the campaign's final diagnosis) or TIMEOUT_S.
 """
 import json
 import struct
@@ -59,6 +61,18 @@ class ResidualLocation_(IdlStruct, typename="volcal_msgs::msg::dds_::ResidualLoc
 
 
 @dataclass
+class LineResidual_(IdlStruct, typename="volcal_msgs::msg::dds_::LineResidual_"):
+    kind: str
+    station: uint32
+    line: uint32
+    segment: uint32
+    n_readings: uint32
+    rms_before_m: float64
+    rms_after_m: float64
+    flagged_by: sequence[str]
+
+
+@dataclass
 class Diagnosis_(IdlStruct, typename="volcal_msgs::msg::dds_::Diagnosis_"):
     header: Header_
     format: str
@@ -83,6 +97,8 @@ class Diagnosis_(IdlStruct, typename="volcal_msgs::msg::dds_::Diagnosis_"):
     map_change_max_m: float64
     statements: sequence[str]
     diagnosis_json: str
+    partial: bool
+    lines: sequence[LineResidual_]
 
 
 def bits(x):
@@ -106,22 +122,26 @@ def plain(v):
 
 def main():
     domain, timeout = int(sys.argv[1]), float(sys.argv[2])
+    every = len(sys.argv) > 3 and sys.argv[3] == "all"
     dp = DomainParticipant(domain)
     topic = Topic(dp, "rt/diagnosis", Diagnosis_)
     qos = Qos(
         Policy.Reliability.Reliable(duration(milliseconds=100)),
         Policy.Durability.TransientLocal,
-        Policy.History.KeepLast(1),
+        Policy.History.KeepLast(16 if every else 1),
     )
     reader = DataReader(dp, topic, qos=qos)
     print(json.dumps({"ready": True}), flush=True)
     end = time.time() + timeout
+    received = 0
     while time.time() < end:
-        for s in reader.take(N=1):
-            print(json.dumps({"sample": plain(s)}), flush=True)
-            return
+        for s in reader.take(N=16):
+            received += 1
+            print(json.dumps({"sample": plain(s), "received_unix_s": time.time()}), flush=True)
+            if not every or not s.partial:
+                return
         time.sleep(0.02)
-    print(json.dumps({"received": 0}), flush=True)
+    print(json.dumps({"received": received}), flush=True)
 
 
 if __name__ == "__main__":

@@ -12,8 +12,8 @@ use volcal_formats::instrument::{InstrumentInfo, Truth};
 use volcal_formats::model_file::ModelFile;
 use volcal_msgs::msg::{
     Abscissa, AbscissaBatch, BeamState, DiagnosedEffect, Diagnosis, EffectParameter, Environment, ErrorFunction,
-    ErrorModel, InterferometerInfo, MachinePosition, MachinePositionBatch, ReflectorTruth, ResidualLocation,
-    SyncedPair, TracerRange, Trigger,
+    ErrorModel, InterferometerInfo, LineResidual, MachinePosition, MachinePositionBatch, ReflectorTruth,
+    ResidualLocation, SyncedPair, TracerRange, Trigger,
 };
 use volcal_msgs::std_msgs::msg::Header;
 
@@ -268,8 +268,9 @@ pub fn error_model_msg(f: &ModelFile, stamp_ns: i64) -> Result<ErrorModel> {
 
 /// The `/diagnosis` message of a diagnosis file (with the file itself as lossless JSON).
 /// `model` says which model was published on `/error_model` with it. The figures are the
-/// file's, unchanged: the message and `volcal diagnose --json` agree to the bit.
-pub fn diagnosis_msg(f: &DiagnosisFile, model: &str, stamp_ns: i64) -> Result<Diagnosis> {
+/// file's, unchanged: the message and `volcal diagnose --json` agree to the bit. `partial`: a
+/// live diagnosis of the pairs so far, while the campaign runs.
+pub fn diagnosis_msg(f: &DiagnosisFile, model: &str, partial: bool, stamp_ns: i64) -> Result<Diagnosis> {
     let location = |l: &LocationEntry| ResidualLocation {
         kind: l.kind.clone(),
         label: l.label.clone(),
@@ -331,6 +332,21 @@ pub fn diagnosis_msg(f: &DiagnosisFile, model: &str, stamp_ns: i64) -> Result<Di
         map_change_max_m: f.map_change_max_m,
         statements: f.statements.clone(),
         diagnosis_json: serde_json::to_string(f)?,
+        partial,
+        lines: f
+            .lines
+            .iter()
+            .map(|l| LineResidual {
+                kind: l.kind.clone(),
+                station: l.station,
+                line: l.line,
+                segment: l.segment,
+                n_readings: l.n_readings as u32,
+                rms_before_m: l.rms_before_m,
+                rms_after_m: l.rms_after_m,
+                flagged_by: l.flagged_by.clone(),
+            })
+            .collect(),
     })
 }
 

@@ -2,7 +2,8 @@
 
 usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]...
                                              a recording of `volcal solve --rerun`
-       check_rrd.py --live LIVE.rrd BAG      a recording of the viz node watching the campaign
+       check_rrd.py --live LIVE.rrd BAG [--entity PATH]...
+                                             a recording of the viz node watching the campaign
                                              recorded in the rosbag2 BAG
 
 `--series ROOT`: one more per-reading series per line is expected under ROOT (e.g. the
@@ -145,14 +146,14 @@ def main(argv):
     live = argv[:1] == ["--live"]
     if live:
         argv = argv[1:]
-    if len(argv) < 2 or (live and len(argv) != 2) or len(argv) % 2 != 0:
+    if len(argv) < 2 or len(argv) % 2 != 0:
         sys.exit(__doc__)
     rrd, campaign = argv[:2]
     series_roots, extra_entities = ["fit/residuals"], set()
     rest = argv[2:]
     while rest:
         flag, value, rest = rest[0], rest[1], rest[2:]
-        if flag not in ("--series", "--entity"):
+        if flag not in ("--series", "--entity") or (live and flag == "--series"):
             sys.exit(__doc__)
         {"--series": series_roots.append, "--entity": extra_entities.add}[flag](value)
     readings = bag_lines(campaign) if live else campaign_lines(campaign)
@@ -161,6 +162,7 @@ def main(argv):
     rec = Recording(rrd)
     if live:
         expected, problems = check_live(rec, readings)
+        expected |= extra_entities
     else:
         expected, problems = check_solve(rec, readings, series_roots, extra_entities)
     problems = rec.problems() + problems

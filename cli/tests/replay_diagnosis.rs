@@ -11,12 +11,11 @@
 
 mod common;
 
+use common::cyclone_diagnosis::CycloneDiagnosis;
 use common::*;
 use serde_json::Value;
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::sync::{Arc, Mutex};
+use std::process::Command;
 use std::time::{Duration, Instant};
 use volcal_formats::model_file::{self, ModelFile};
 use volcal_formats::truth_file::TruthFile;
@@ -36,50 +35,6 @@ fn rosbags_bag(py: &Path, csv: &Path, out: &Path, mode: &str) -> PathBuf {
         .unwrap();
     assert!(st.status.success(), "rosbags writer: {}", String::from_utf8_lossy(&st.stderr));
     out.to_path_buf()
-}
-
-/// The CycloneDDS subscriber of `/diagnosis`, started and waiting for its first sample.
-struct CycloneDiagnosis {
-    child: std::process::Child,
-    lines: Arc<Mutex<Vec<String>>>,
-}
-
-impl CycloneDiagnosis {
-    fn start(py: &Path, domain: u16, timeout_s: f64) -> CycloneDiagnosis {
-        let mut child = Command::new(py)
-            .arg(repo().join(".ci/checks/cyclone_diagnosis.py"))
-            .args([domain.to_string(), timeout_s.to_string()])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("cannot start the CycloneDDS subscriber");
-        let lines = Arc::new(Mutex::new(Vec::new()));
-        let (l, out) = (lines.clone(), child.stdout.take().unwrap());
-        std::thread::spawn(move || {
-            for line in BufReader::new(out).lines().map_while(Result::ok) {
-                l.lock().unwrap().push(line);
-            }
-        });
-        let start = Instant::now();
-        while !lines.lock().unwrap().iter().any(|l| l.contains("\"ready\"")) {
-            assert!(start.elapsed() < Duration::from_secs(30), "the CycloneDDS subscriber did not start");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        CycloneDiagnosis { child, lines }
-    }
-
-    /// The sample it received (it ends after the first, or with `{"received": 0}`).
-    fn sample(mut self) -> Value {
-        let st = self.child.wait().unwrap();
-        std::thread::sleep(Duration::from_millis(100));
-        assert!(st.success(), "the CycloneDDS subscriber failed");
-        let lines = self.lines.lock().unwrap();
-        lines
-            .iter()
-            .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-            .find_map(|v| v.get("sample").cloned())
-            .unwrap_or_else(|| panic!("CycloneDDS received no /diagnosis:\n{}", lines.join("\n")))
-    }
 }
 
 /// What a replay with `diagnose:=true` published and wrote.
@@ -102,7 +57,7 @@ fn replay(py: &Path, bag: &Path, machine: &Path, dir: &Path, name: &str) -> Repl
     let cli: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
 
     let lease = domain::lease().unwrap();
-    let cyclone = CycloneDiagnosis::start(py, lease.id, 240.0);
+    let cyclone = CycloneDiagnosis::start(py, lease.id, 240.0, false);
     let model_path = dir.join(format!("{name}.model.json"));
     let args = [
         format!("machine:={}", machine.display()),
@@ -191,6 +146,15 @@ fn check_same_diagnosis(name: &str, s: &Value, cli: &Value) {
             same_number(&format!("{name} {id}: u({n})"), &p["uncertainty"], &c["uncertainty"][n]);
             assert!(!p["unit"].as_str().unwrap().is_empty(), "{name} {id}: {n} has no unit");
         }
+    }
+    assert_eq!(s["partial"], false, "{name}: a replay's diagnosis is not partial");
+    let (lines, cli_lines) = (s["lines"].as_array().unwrap(), cli["lines"].as_array().unwrap());
+    assert_eq!(lines.len(), cli_lines.len(), "{name}: number of lines");
+    for (m, f) in lines.iter().zip(cli_lines) {
+        for k in ["station", "line", "n_readings", "flagged_by"] {
+            assert_eq!(m[k], f[k], "{name}: line {k}");
+        }
+        same_number(&format!("{name}: line rms_after_m"), &m["rms_after_m"], &f["rms_after_m"]);
     }
     for k in ["locations", "remaining"] {
         let (m, f) = (s[k].as_array().unwrap(), cli[k].as_array().unwrap());

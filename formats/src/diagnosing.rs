@@ -52,6 +52,6 @@ pub fn diagnose_campaign(
     );
     let d = diagnose(&machine.layout, &prepared.obs, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     let n = prepared.obs.len();
-    let file = DiagnosisFile::new(&d, n, provenance);
+    let file = DiagnosisFile::new(&d, &prepared.obs, provenance);
     Ok(Diagnosed { file, report: text_report(&d, source, n), diagnosis: d, obs: prepared.obs })
 }

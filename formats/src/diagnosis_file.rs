@@ -13,6 +13,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
+use volcal::campaign::{ObsKind, Observations};
 use volcal::diagnose::{Diagnosis, Location};
 
 /// Format tag of the JSON file.
@@ -67,6 +68,61 @@ impl From<&Location> for LocationEntry {
     }
 }
 
+/// The residual of one measured line (a segment of it: a recorded beam break starts a new
+/// one) before and after the refit, and the named effects that locate themselves on it: what
+/// a live view draws per beam, and where a beam is worth measuring again.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LineEntry {
+    /// `beam` (interferometer) or `range` (tracer).
+    pub kind: String,
+    pub station: u32,
+    pub line: u32,
+    pub segment: u32,
+    pub n_readings: usize,
+    pub rms_before_m: f64,
+    pub rms_after_m: f64,
+    /// Ids of the named effects whose parameters place them on this line (`station` and
+    /// `beam`, e.g. `beam_break`); empty for the others.
+    pub flagged_by: Vec<String>,
+}
+
+impl LineEntry {
+    /// One entry per line group of `obs`, in group order.
+    pub fn of(d: &Diagnosis, obs: &Observations) -> Vec<LineEntry> {
+        let (before, after) = (obs.rms_per_line(&d.before.residuals), obs.rms_per_line(&d.after.residuals));
+        let located: Vec<(&str, f64, f64)> = d
+            .effects
+            .iter()
+            .filter_map(|e| {
+                let get = |k: &str| e.parameters.iter().find(|p| p.0 == k).map(|p| p.1);
+                Some((e.id.as_str(), get("station")?, get("beam")?))
+            })
+            .collect();
+        obs.groups
+            .iter()
+            .enumerate()
+            .map(|(k, g)| LineEntry {
+                kind: match g.kind {
+                    ObsKind::Beam => "beam",
+                    ObsKind::Range => "range",
+                }
+                .into(),
+                station: g.station,
+                line: g.line,
+                segment: g.segment,
+                n_readings: g.len(),
+                rms_before_m: before[k],
+                rms_after_m: after[k],
+                flagged_by: located
+                    .iter()
+                    .filter(|(_, s, b)| *s == g.station as f64 && *b == g.line as f64)
+                    .map(|(id, ..)| id.to_string())
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
 /// A candidate of one selection round.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct CandidateEntry {
@@ -108,10 +164,15 @@ pub struct DiagnosisFile {
     pub map_change_max_m: f64,
     pub statements: Vec<String>,
     pub rounds: Vec<Vec<CandidateEntry>>,
+    /// Residual RMS per measured line before and after, with the lines a named effect flags
+    /// (absent from files of earlier versions).
+    #[serde(default)]
+    pub lines: Vec<LineEntry>,
 }
 
 impl DiagnosisFile {
-    pub fn new(d: &Diagnosis, n_readings: usize, provenance: Provenance) -> DiagnosisFile {
+    /// The file of diagnosis `d` of the observations `obs`.
+    pub fn new(d: &Diagnosis, obs: &Observations, provenance: Provenance) -> DiagnosisFile {
         let mut effects: Vec<EffectEntry> = d
             .effects
             .iter()
@@ -130,7 +191,7 @@ impl DiagnosisFile {
         DiagnosisFile {
             format: FORMAT.into(),
             provenance,
-            n_readings,
+            n_readings: obs.len(),
             rms_before_m: d.rms_before_m,
             rms_after_m: d.rms_after_m,
             noise_rms_m: d.noise_rms_m,
@@ -163,6 +224,7 @@ impl DiagnosisFile {
                         .collect()
                 })
                 .collect(),
+            lines: LineEntry::of(d, obs),
         }
     }
 

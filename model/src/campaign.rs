@@ -208,6 +208,18 @@ impl Observations {
         self.x.is_empty()
     }
 
+    /// RMS of `values_m` (one per observation) over each line group, in group order: the
+    /// per-line residual a diagnosis reports and a viewer draws as bars.
+    pub fn rms_per_line(&self, values_m: &[f64]) -> Vec<f64> {
+        self.groups
+            .iter()
+            .map(|g| {
+                let v = &values_m[g.range()];
+                (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+            })
+            .collect()
+    }
+
     /// Groups of one kind.
     pub fn groups_of(&self, kind: ObsKind) -> impl Iterator<Item = (usize, &LineGroup)> {
         self.groups.iter().enumerate().filter(move |(_, g)| g.kind == kind)

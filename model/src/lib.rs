@@ -26,6 +26,7 @@ pub mod campaign;
 pub mod diagnose;
 pub mod environment;
 pub mod estimator;
+pub mod flexibility;
 pub mod functions;
 pub mod gauge;
 pub mod identify;

@@ -117,27 +117,37 @@ pub fn last_seconds(view: View, seconds: f64) -> View {
     view.property("VisibleTimeRanges", &bp::VisibleTimeRanges::new([range]))
 }
 
-/// Layout of the live `viz` node: the status (what is measured now, rates, running RMS) and
-/// the RMS per line on the left, the scene in the middle (stations, commanded beams, points,
-/// running line fits, the current point and the beam), the residuals of the last 30 s and the
-/// running RMS on the right. The cursor follows [`paths::CAMPAIGN_TIME`].
+/// Layout of the live `viz` node: the status (what is measured now, rates, running RMS), the
+/// latest live diagnosis (its verdict, the beams to measure again) and the RMS per line of the
+/// running line fits on the left; the scene in the middle (stations, commanded beams, points,
+/// running line fits, the current point and the beam, flagged beams in red); on the right the
+/// residuals of the last 30 s, the running RMS, and the diagnosis: RMS per line before and
+/// after its refit, and its overall RMS over time. The cursor follows [`paths::CAMPAIGN_TIME`].
 pub fn live(travel: Option<&Travel>) -> Layout {
-    use super::live::{LIVE_RESIDUALS, LIVE_RESIDUAL_RMS, LIVE_RUNNING_RMS, LIVE_STATUS};
+    use super::live::{DIAGNOSIS_RMS_HISTORY, LIVE_RESIDUALS, LIVE_RESIDUAL_RMS, LIVE_RUNNING_RMS, LIVE_STATUS};
     let left = Container::vertical([
         View::text_document("Campaign status", [format!("+ /{LIVE_STATUS}")]).into(),
+        View::text_document("Live diagnosis", [format!("+ /{}", paths::DIAGNOSIS_REPORT)]).into(),
         rms_view("Residual RMS per line (µm), line fits", LIVE_RESIDUAL_RMS).into(),
     ])
-    .shares([0.8, 1.0]);
+    .shares([0.8, 1.0, 0.8]);
     let right = Container::vertical([
         last_seconds(series_view("Residuals from the running line fits (µm), last 30 s", LIVE_RESIDUALS), 30.0).into(),
         View::time_series("Running residual RMS of the campaign (µm)", [format!("+ /{LIVE_RUNNING_RMS}")])
             .without_legend()
             .into(),
+        rms_view("Diagnosis: residual RMS per beam, rigid-body fit (µm)", paths::RMS_BEFORE).into(),
+        rms_view("Diagnosis: residual RMS per beam, refit with the named effects (µm)", paths::RMS_AFTER).into(),
+        View::time_series(
+            "Diagnosis: residual RMS before / after / noise (µm)",
+            [format!("+ /{DIAGNOSIS_RMS_HISTORY}/**")],
+        )
+        .into(),
     ])
-    .shares([1.6, 1.0]);
+    .shares([1.2, 0.7, 0.8, 0.8, 0.8]);
     let root = Container::horizontal([
         left.into(),
-        scene_view("Volume: stations, beams, points, current position", travel, 1.35, []).into(),
+        scene_view("Volume: stations, beams, points, current position; flagged beams red", travel, 1.35, []).into(),
         right.into(),
     ])
     .shares([0.85, 1.4, 1.2]);

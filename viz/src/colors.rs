@@ -25,6 +25,9 @@ pub fn signed(t: f64) -> Rgba {
     ramp(&[[0.2, 0.45, 1.0], [0.85, 0.85, 0.85], [1.0, 0.25, 0.2]], 0.5 * (t + 1.0))
 }
 
+/// A beam that a diagnosis flags (to measure again).
+pub const FLAGGED: Rgba = [0xff, 0x30, 0x30, 255];
+
 /// Categorical colour of a station (stable across views: beams, residual series, bars).
 pub fn station(s: u32) -> Rgba {
     const P: [Rgba; 8] = [

@@ -47,6 +47,38 @@ pub const LIVE_RUNNING_RMS: &str = "live/running_rms";
 pub const LIVE_CURRENT_POINT: &str = "live/current_point";
 pub const LIVE_DEFLECTOR: &str = "live/deflector";
 pub const LIVE_STATUS: &str = "live/status";
+/// The beams a live diagnosis flags, drawn through the volume in red (3D scene).
+pub const LIVE_FLAGGED: &str = "live/flagged";
+/// Residual RMS of the latest live diagnosis over time: before, after the refit, the noise
+/// model's (µm).
+pub const DIAGNOSIS_RMS_HISTORY: &str = "diagnosis/rms_history";
+
+/// One line of a live diagnosis (from `/diagnosis`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineVerdict {
+    pub station: u32,
+    pub line: u32,
+    pub rms_before_m: f64,
+    pub rms_after_m: f64,
+    /// The named effects located on this line (e.g. `beam_break`): a beam to measure again.
+    pub flagged_by: Vec<String>,
+}
+
+/// A diagnosis of the campaign so far, as the solver node publishes it on `/diagnosis`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveDiagnosis {
+    /// Set while the campaign runs.
+    pub partial: bool,
+    pub readings: usize,
+    pub rms_before_m: f64,
+    pub rms_after_m: f64,
+    pub noise_rms_m: f64,
+    /// The report's statements, strongest effect first.
+    pub statements: Vec<String>,
+    /// Set when an excess remains that no catalogue effect explains.
+    pub unexplained: Option<String>,
+    pub lines: Vec<LineVerdict>,
+}
 
 /// What the deflector does now.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -151,6 +183,8 @@ pub struct LiveViz {
     last_status_t: f64,
     /// Extra status line from the caller (sequencer progress, the node's own lag).
     note: String,
+    /// Commanded beams: (station, beam) -> pivot, direction, length through the volume.
+    commanded: BTreeMap<(u32, u32), (Point3<f64>, Vector3<f64>, f64)>,
 }
 
 fn kind_key(k: ObsKind) -> u8 {
@@ -186,6 +220,7 @@ impl LiveViz {
             dirty_stations: Vec::new(),
             last_status_t: f64::NEG_INFINITY,
             note: String::new(),
+            commanded: BTreeMap::new(),
         })
     }
 
@@ -212,6 +247,7 @@ impl LiveViz {
                 .with_labels([format!("station {}", state.station)]),
         )?;
         let length = self.beam_length(&state);
+        self.commanded.insert((state.station, state.beam), (state.origin, state.direction, length));
         super::scene::log_commanded_beam(
             &self.rec,
             state.station,
@@ -294,6 +330,106 @@ impl LiveViz {
                 self.retiring.push(old);
             }
         }
+    }
+
+    /// A diagnosis of the campaign so far (the solver node's `/diagnosis`), at campaign time
+    /// `t_s`: the beams it flags drawn in red through the volume and labelled with the effect,
+    /// the residual RMS per line before and after its refit (bar charts per station, replacing
+    /// the previous diagnosis's), the overall RMS before and after over time against the noise
+    /// model's, and its report.
+    pub fn diagnosis(&mut self, t_s: f64, d: &LiveDiagnosis) -> anyhow::Result<()> {
+        self.t_s = self.t_s.max(t_s);
+        self.rec.set_duration_secs(paths::CAMPAIGN_TIME, self.t_s);
+        let flagged: Vec<&LineVerdict> = d.lines.iter().filter(|l| !l.flagged_by.is_empty()).collect();
+        let mut strips = Vec::new();
+        let mut labels = Vec::new();
+        for l in &flagged {
+            if let Some((o, dir, len)) = self.commanded.get(&(l.station, l.line)) {
+                strips.push([f32p(o), f32p(&(o + dir * *len))]);
+                labels.push(format!(
+                    "station {} beam {}: {} (RMS {:.2} → {:.2} µm)",
+                    l.station,
+                    l.line,
+                    l.flagged_by.join(", "),
+                    l.rms_before_m * 1e6,
+                    l.rms_after_m * 1e6
+                ));
+            }
+        }
+        self.rec.log(
+            LIVE_FLAGGED,
+            &crate::rerun::LineStrips3D::new(strips)
+                .with_colors([colors::FLAGGED])
+                .with_radii([crate::rerun::Radius::new_ui_points(4.0)])
+                .with_labels(labels),
+        )?;
+        let mut stations: Vec<u32> = d.lines.iter().map(|l| l.station).collect();
+        stations.sort_unstable();
+        stations.dedup();
+        // Stations side by side: station k's beams from k * (beams + 2).
+        let stride = d.lines.iter().map(|l| l.line).max().unwrap_or(0) as f64 + 3.0;
+        for (k, s) in stations.into_iter().enumerate() {
+            for (root, rms) in [
+                (paths::RMS_BEFORE, (|l: &LineVerdict| l.rms_before_m) as fn(&LineVerdict) -> f64),
+                (paths::RMS_AFTER, |l: &LineVerdict| l.rms_after_m),
+            ] {
+                let (idx, val): (Vec<f64>, Vec<f64>) = d
+                    .lines
+                    .iter()
+                    .filter(|l| l.station == s)
+                    .map(|l| (k as f64 * stride + l.line as f64, rms(l) * 1e6))
+                    .unzip();
+                self.rec.log(
+                    paths::station_series(root, s),
+                    &crate::rerun::BarChart::new(val).with_abscissa(idx).with_color(colors::station(s)),
+                )?;
+            }
+        }
+        for (name, v, color) in [
+            ("before", d.rms_before_m, [0xe0, 0x5a, 0x4a, 255]),
+            ("after", d.rms_after_m, [0x5c, 0xc8, 0x6b, 255]),
+            ("noise", d.noise_rms_m, [0x9a, 0x9a, 0x9a, 255]),
+        ] {
+            let path = format!("{DIAGNOSIS_RMS_HISTORY}/{name}");
+            self.rec.log_static(
+                path.as_str(),
+                &crate::rerun::SeriesLines::new().with_colors([color]).with_names([match name {
+                    "before" => "rigid-body fit",
+                    "after" => "refit with the named effects",
+                    _ => "noise model",
+                }]),
+            )?;
+            self.rec.log(path.as_str(), &crate::rerun::Scalars::new([v * 1e6]))?;
+        }
+        let mut text = format!(
+            "**{} diagnosis** at {:.1} s of {} readings: residual RMS {:.3} µm before, {:.3} µm after \
+             (noise model {:.3} µm)\n\n",
+            if d.partial { "Live" } else { "Final" },
+            self.t_s,
+            d.readings,
+            d.rms_before_m * 1e6,
+            d.rms_after_m * 1e6,
+            d.noise_rms_m * 1e6
+        );
+        if flagged.is_empty() {
+            text += "No beam flagged.\n\n";
+        } else {
+            text += &format!(
+                "**Measure again**: {}\n\n",
+                flagged.iter().map(|l| format!("station {} beam {}", l.station, l.line)).collect::<Vec<_>>().join(", ")
+            );
+        }
+        if d.statements.is_empty() && d.unexplained.is_none() {
+            text += "Nothing named: the residual is what the noise model expects.\n";
+        }
+        for st in &d.statements {
+            text += &format!("- {st}\n");
+        }
+        if let Some(u) = &d.unexplained {
+            text += &format!("\n{u}\n");
+        }
+        self.rec.log(paths::DIAGNOSIS_REPORT, &crate::rerun::TextDocument::from_markdown(text))?;
+        Ok(())
     }
 
     /// Logs everything received and the status, at the end of the campaign (or of watching).

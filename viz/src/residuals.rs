@@ -45,17 +45,6 @@ pub fn log_line_series(
     Ok(())
 }
 
-/// RMS of `values_m` over each line group of `obs`, in group order.
-pub fn rms_per_line(obs: &Observations, values_m: &[f64]) -> Vec<f64> {
-    obs.groups
-        .iter()
-        .map(|g| {
-            let v = &values_m[g.range()];
-            (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
-        })
-        .collect()
-}
-
 /// Logs the RMS of `values_m` per line as bar charts `<root>/stations/<s>` (micrometres), one
 /// per station in its colour, each bar at the line's [`paths::BEAM_INDEX`]. Static.
 pub fn log_rms_bars(
@@ -64,7 +53,7 @@ pub fn log_rms_bars(
     obs: &Observations,
     values_m: &[f64],
 ) -> RecordingStreamResult<()> {
-    let rms = rms_per_line(obs, values_m);
+    let rms = obs.rms_per_line(values_m);
     let mut stations: Vec<u32> = obs.groups.iter().map(|g| g.station).collect();
     stations.sort_unstable();
     stations.dedup();

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod cell;
+pub mod cyclone_diagnosis;
 pub mod rrd;
 
 use std::io::{BufRead, BufReader};

@@ -12,8 +12,9 @@
 //! | [`environment`] | | `/environment` |
 //! | [`sequencer`] | positions, readings, `/deflector/state`, `/campaign/pairs` | `/deflector/command`, `/machine/command`, `/sequencer/trigger`, `/sequencer/status` |
 //! | [`recorder`] | everything above | `/campaign/pairs`; writes the bag |
-//! | [`solver`] | (a bag) | `/error_model` (transient-local); writes the model JSON |
-//! | [`viz`] | `/campaign/pairs`, positions, `/deflector/*`, `/sequencer/status` | (Rerun: live view, `.rrd`) |
+//! | [`solver`] | (a bag) | `/error_model`, `/diagnosis` (transient-local); writes the model JSON |
+//! | [`solver`] with `live: true` ([`live_diagnosis`]) | `/campaign/pairs`, `/interferometer/info`, `/sequencer/status` | `/diagnosis` (partial while the campaign runs), `/error_model` at its end |
+//! | [`viz`] | `/campaign/pairs`, positions, `/deflector/*`, `/sequencer/status`, `/diagnosis` | (Rerun: live view, `.rrd`) |
 //!
 //! The sim backends of the instrument nodes also exchange `/sim/truth/beam` and
 //! `/sim/truth/reflector`; no other node reads them.
@@ -22,6 +23,7 @@ pub mod deflector;
 pub mod environment;
 pub mod interferometer;
 pub mod latch;
+pub mod live_diagnosis;
 pub mod machine;
 pub mod machine_cell;
 pub mod recorder;

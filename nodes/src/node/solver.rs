@@ -12,7 +12,11 @@
 //! diagnose` accept), `machine` (default: the built-in demo machine), `out` (model JSON;
 //! default `model.json` inside the bag directory), `diagnose` (default false), `linger_s` (how
 //! long to keep serving the model; negative: until stopped, the default).
+//!
+//! With `live: true` it reads no bag: it diagnoses a recording while it runs, from the pairs
+//! the recorder publishes ([`super::live_diagnosis`]).
 
+use super::live_diagnosis::MachineSource;
 use super::runtime::secs;
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, Result};
@@ -30,16 +34,8 @@ use volcal_msgs::msg::{Diagnosis, ErrorModel};
 use volcal_msgs::topics;
 
 pub fn run(node: &mut RosNode) -> Result<()> {
-    let bag: PathBuf = node.args.require::<String>("bag")?.into();
     let machine_path = node.args.path("machine")?;
-    let out = match node.args.path("out")? {
-        Some(p) => p,
-        None if bag.is_dir() => bag.join("model.json"),
-        None => bag.with_extension("model.json"),
-    };
-    let diagnose: bool = node.args.get_or("diagnose", false)?;
     let linger: f64 = node.args.get_or("linger_s", -1.0)?;
-    node.warn_unused_parameters();
     let (machine, machine_name, machine_sha) = match &machine_path {
         Some(p) => (Machine::load(p)?, p.display().to_string(), sha256_file(p)?),
         None => (
@@ -48,6 +44,23 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             format!("{:x}", Sha256::digest(DEMO_MACHINE.as_bytes())),
         ),
     };
+    if node.args.get_or("live", false)? {
+        let out = node.args.path("out")?;
+        let source = MachineSource { machine, name: machine_name, sha256: machine_sha };
+        return super::live_diagnosis::run(node, source, out, linger);
+    }
+    let bag: PathBuf = node
+        .args
+        .require::<String>("bag")
+        .map_err(|e| anyhow!("{e:#} (or live: true to diagnose a recording while it runs)"))?
+        .into();
+    let out = match node.args.path("out")? {
+        Some(p) => p,
+        None if bag.is_dir() => bag.join("model.json"),
+        None => bag.with_extension("model.json"),
+    };
+    let diagnose: bool = node.args.get_or("diagnose", false)?;
+    node.warn_unused_parameters();
     let started = Instant::now();
     let campaign = campaign::load_campaign(&bag)?;
     log::info!("replaying {} pairs from {}", campaign.readings.len(), bag.display());
@@ -64,7 +77,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         print!("{}", d.report);
         let model = d.refit_model(provenance);
         let which = which_model(&d.file.effects.iter().map(|e| e.id.as_str()).collect::<Vec<_>>(), &out);
-        (model, Some(diagnosis_msg(&d.file, &which, now_ns())?))
+        (model, Some(diagnosis_msg(&d.file, &which, false, now_ns())?))
     } else {
         let solved = solve_campaign(&campaign, machine, &source, provenance)?;
         print!(

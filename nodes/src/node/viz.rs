@@ -2,7 +2,8 @@
 //! feeds [`volcal_viz::live::LiveViz`]: `/campaign/pairs` (the recorder's synchronised pairs),
 //! `/machine/position` and `/machine/position_batch` (the current point), `/deflector/command`
 //! and `/deflector/state` (stations, commanded beams, the beam now), `/sequencer/status`
-//! (progress). It only listens: nothing it does reaches the recorder.
+//! (progress), and `/diagnosis` (a live solver node's diagnoses: flagged beams, residuals per
+//! line before and after the refit). It only listens: nothing it does reaches the recorder.
 //!
 //! Output, as on `volcal solve`: `volcal_viz --rerun FILE.rrd`, `--rerun-connect [ADDR]`,
 //! `--rerun-spawn` before `--ros-args`, or the parameters `rerun`, `rerun_connect`,
@@ -27,7 +28,7 @@ use volcal_formats::machine::Machine;
 use volcal_msgs::msg::*;
 use volcal_msgs::topics;
 use volcal_sim::instruments::direction_from_angles;
-use volcal_viz::live::{DeflectorState, LiveViz};
+use volcal_viz::live::{DeflectorState, LineVerdict, LiveDiagnosis, LiveViz};
 use volcal_viz::{blueprint, RerunArgs};
 
 /// The node's own flags, before `--ros-args`.
@@ -80,6 +81,33 @@ pub struct VizReport {
     pub pair_lag_first_ms: f64,
     pub pair_lag_last_ms: f64,
     pub pair_lag_max_ms: f64,
+    /// Diagnoses received on `/diagnosis` (a live solver node's).
+    #[serde(default)]
+    pub diagnoses: u64,
+}
+
+/// What the live view shows of a `/diagnosis` message.
+fn live_diagnosis(m: &Diagnosis) -> LiveDiagnosis {
+    LiveDiagnosis {
+        partial: m.partial,
+        readings: m.n_readings as usize,
+        rms_before_m: m.rms_before_m,
+        rms_after_m: m.rms_after_m,
+        noise_rms_m: m.noise_rms_m,
+        statements: m.effects.iter().map(|e| e.statement.clone()).collect(),
+        unexplained: (!m.unexplained.is_empty()).then(|| m.unexplained.clone()),
+        lines: m
+            .lines
+            .iter()
+            .map(|l| LineVerdict {
+                station: l.station,
+                line: l.line,
+                rms_before_m: l.rms_before_m,
+                rms_after_m: l.rms_after_m,
+                flagged_by: l.flagged_by.clone(),
+            })
+            .collect(),
+    }
 }
 
 /// Lags over time, for the first and last windows and the maximum.
@@ -142,6 +170,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut commands = node.subscription::<BeamCommand>(topics::DEFLECTOR_COMMAND, qos::commands())?;
     let mut states = node.subscription::<BeamState>(topics::DEFLECTOR_STATE, qos::latched())?;
     let mut status = node.subscription::<SequencerStatus>(topics::SEQUENCER_STATUS, qos::latched())?;
+    let mut diagnoses = node.subscription::<Diagnosis>(topics::DIAGNOSIS, qos::latched())?;
 
     let travel = machine.as_ref().map(|m| m.layout.travel);
     let name = machine.as_ref().and_then(|m| m.file.name.clone()).unwrap_or_else(|| "machine".into());
@@ -252,6 +281,10 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 if m.message.is_empty() { String::new() } else { format!(" — {}", m.message) }
             );
             Ok(())
+        })?;
+        diagnoses.drain(|m| {
+            report.diagnoses += 1;
+            viz.diagnosis(ts(m.header.stamp.to_nanos(), t0_ns), &live_diagnosis(&m))
         })?;
         if Instant::now() >= next_flush {
             let lag = machine_lag.samples.last().map(|s| format!(" · viz lag {:.0} ms", s.1)).unwrap_or_default();
