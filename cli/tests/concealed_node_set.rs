@@ -116,7 +116,8 @@ fn a_concealed_static_recording_names_nothing_and_is_diagnosed() {
     let dir = scratch("concealed-node-set-static");
     let m = machine(false);
     let spec = "beam_break:station=1,beam=4,index=10,step_m=-1.3e-6";
-    let (bag, truth_path, secs) = record(&dir, "beam_break", &m, 20, spec, &[]);
+    // The bag's name is the user's choice and goes into metadata.yaml: a neutral one here.
+    let (bag, truth_path, secs) = record(&dir, "static_recording", &m, 20, spec, &[]);
     assert_concealed(&bag, &["beam_break", "step_m", "inject", "/sim/truth", "truth"]);
     let (d, report) = diagnose(&bag, &m);
     eprintln!("{report}");

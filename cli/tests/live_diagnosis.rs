@@ -123,6 +123,9 @@ fn a_live_recording_flags_the_broken_beam_before_the_campaign_ends() {
             s["rms_before_m"].as_f64().unwrap() * 1e6,
             s["rms_after_m"].as_f64().unwrap() * 1e6
         );
+        if s["partial"] == true {
+            eprintln!("            {}", s["statements"][0].as_str().unwrap_or(""));
+        }
     }
     let first = samples
         .iter()
