@@ -486,12 +486,12 @@ fn propose(
             push(Family::Periodic(a), Box::new(catalogue::periodic(obs, dirs, a, p)), tests, Some(p), &mut out);
         }
     }
-    // Beam breaks: the best step position in each line from the residuals alone; the strongest
-    // few lines are then scored exactly.
+    // Beam breaks: the best step position in each line from the residuals alone, with at
+    // least STEP_SIDE readings on either side; the strongest few lines are then scored exactly.
     let mut steps: Vec<(f64, usize, usize)> = Vec::new();
     let mut positions = 0usize;
     for (g, gr) in obs.groups.iter().enumerate() {
-        if taken(Family::BeamBreak(g)) || gr.len() < 6 {
+        if taken(Family::BeamBreak(g)) || gr.len() < 2 * STEP_SIDE {
             continue;
         }
         let (mut best, mut at) = (0.0, 0);
@@ -500,6 +500,13 @@ fn propose(
         let mut cum = 0.0;
         for (k, i) in gr.range().enumerate().skip(1) {
             cum += z[i - 1];
+            // A step with fewer than STEP_SIDE readings on one side is one or two bad readings
+            // (the line's origin is eliminated): at a turn of an on-the-fly run, the first
+            // reading of a segment carries whatever the model gets wrong at the turn, and
+            // calling that a lost count would name physics that is not there.
+            if k < STEP_SIDE || gr.len() - k < STEP_SIDE {
+                continue;
+            }
             let m = k as f64;
             // Score of a step after point k-1 on the centred residuals (unit weights).
             let after = total - cum;
@@ -509,7 +516,7 @@ fn propose(
                 at = k;
             }
         }
-        positions += gr.len() - 1;
+        positions += gr.len() + 1 - 2 * STEP_SIDE;
         steps.push((best, g, at));
     }
     // The local competitor: the cell of the volume with the largest excess.
@@ -539,6 +546,9 @@ fn propose(
     }
     out
 }
+
+/// Readings a lost count needs on each side of its step to be told from a bad reading.
+const STEP_SIDE: usize = 3;
 
 /// Refines a period by golden-section search on the periodogram around `p`.
 fn refine_period(obs: &Observations, geo: &Geometry, dirs: &[Vector3<f64>], z: &[f64], a: usize, p: f64) -> f64 {

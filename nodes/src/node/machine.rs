@@ -102,7 +102,11 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                 .publish(position_msg(stamp, s, 0))
                 .map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION)),
             Some(pb) => {
-                if single && !acc.x_m.is_empty() {
+                // A batch's samples are stamped `header + i * sample_period`: a sample that
+                // does not fall on that grid (the node fell behind and skipped ahead, or a
+                // corner) starts a new batch, or its coordinates would carry a wrong stamp.
+                let on_grid = acc.header.stamp.to_nanos() + acc.x_m.len() as i64 * moving_ns == stamp;
+                if (single || !on_grid) && !acc.x_m.is_empty() {
                     pb.publish(std::mem::take(acc)).map_err(|e| anyhow!("publish batch: {e:?}"))?;
                 }
                 if acc.x_m.is_empty() {
