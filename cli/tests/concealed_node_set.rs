@@ -57,7 +57,9 @@ fn record(dir: &Path, name: &str, machine: &Path, seed: u64, inject: &str, extra
 }
 
 fn diagnose(bag: &Path, machine: &Path) -> (DiagnosisFile, String) {
-    let json = bag.with_extension("diagnosis.json");
+    // Outside the bag's directory: a committed bag stays as recorded.
+    let name = bag.file_name().unwrap().to_string_lossy();
+    let json = std::env::temp_dir().join(format!("volcal-test-{}-{name}.diagnosis.json", std::process::id()));
     let out = Command::new(volcal())
         .arg("diagnose")
         .arg(bag)
