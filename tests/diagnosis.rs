@@ -13,7 +13,7 @@ use volcal_formats::machine::Machine;
 use volcal_formats::plan::sim_config;
 use volcal_sim::effects::{from_specs, EffectContext};
 use volcal_sim::simulate::InjectedTruth;
-use volcal_sim::{simulate, Injection, Plan, SimConfig};
+use volcal_sim::{simulate, Acquisition, Injection, Plan, SimConfig};
 
 /// A concealed-effect scenario: which effect, and how its strength scales.
 #[derive(Clone, Debug)]
@@ -27,53 +27,41 @@ pub struct Scenario {
     pub air_rate_per_unit: f64,
     /// Low-noise precision setup (interferometer periodic errors are nanometres).
     pub precision: bool,
+    /// Amplitude of the air-conditioning cycle of the air temperature per unit strength, K
+    /// (period 30 minutes).
+    pub air_cycle_per_unit: f64,
+    /// The plan measured at rest point by point ([`static_plan`]) instead of on the fly.
+    pub at_rest: bool,
+}
+
+impl Scenario {
+    /// A scenario on the diagnosis plan on the fly, standard machine, constant air.
+    pub fn new(id: &'static str, spec: &'static str, reference: f64) -> Scenario {
+        Scenario { id, spec, reference, air_rate_per_unit: 0.0, precision: false, air_cycle_per_unit: 0.0, at_rest: false }
+    }
 }
 
 /// The catalogue scenarios.
 pub fn scenarios() -> Vec<Scenario> {
-    let s = |id, spec, reference| Scenario { id, spec, reference, air_rate_per_unit: 0.0, precision: false };
+    let s = Scenario::new;
     vec![
-        Scenario {
-            id: "air_refraction",
-            spec: "air_refraction",
-            reference: 1.0,
-            air_rate_per_unit: 1.0,
-            precision: false,
-        },
+        Scenario { air_rate_per_unit: 1.0, ..s("air_refraction", "air_refraction", 1.0) },
         s("material_expansion", "material_expansion:rate_k_per_h={a}", 0.5),
         s("setup_drift", "setup_drift:vx_m_per_s={a},vy_m_per_s=0,vz_m_per_s={a}", 5e-9),
         s("latency", "latency:latency_s={a}", 10e-6),
         s("reversal", "reversal:backlash_x_m={a},backlash_y_m=0,backlash_z_m=0", 1e-6),
         s("periodic_pitch", "periodic_pitch:axis=0,period_m=0.016,amplitude_m={a}", 0.3e-6),
         s("nonrigid", "nonrigid:coefficient_m={a}", 2e-6),
-        Scenario {
-            id: "probe_offset",
-            spec: "probe_offset:dx_m=0,dy_m=0,dz_m={a}",
-            reference: -0.03,
-            air_rate_per_unit: 0.0,
-            precision: true,
-        },
+        Scenario { precision: true, ..s("probe_offset", "probe_offset:dx_m=0,dy_m=0,dz_m={a}", -0.03) },
         s("beam_break", "beam_break:station=1,beam=4,index=30,step_m={a}", -0.6e-6),
-        Scenario {
-            id: "cyclic_nonlinearity",
-            spec: "cyclic_nonlinearity:amplitude_m={a}",
-            reference: 10e-9,
-            air_rate_per_unit: 0.0,
-            precision: true,
-        },
+        Scenario { precision: true, ..s("cyclic_nonlinearity", "cyclic_nonlinearity:amplitude_m={a}", 10e-9) },
     ]
 }
 
 /// An effect outside the catalogue: a local bump of the volumetric error (a dent in a
 /// guideway) centred at (0.8, 0.2, -0.15) m, radius 80 mm.
 pub fn unmodelled() -> Scenario {
-    Scenario {
-        id: "unmodelled_bump",
-        spec: "unmodelled_bump:amplitude_m={a}",
-        reference: 1.5e-6,
-        air_rate_per_unit: 0.0,
-        precision: false,
-    }
+    Scenario::new("unmodelled_bump", "unmodelled_bump:amplitude_m={a}", 1.5e-6)
 }
 
 /// The machine of the diagnosis campaigns (`launch_configs/machines/diagnosis_cmm*.yaml`):
@@ -91,11 +79,18 @@ pub fn plan() -> Plan {
     volcal_formats::plan::load_plan(Some(&crate::repo_root().join("launch_configs/plans/diagnosis.yaml"))).unwrap()
 }
 
+/// The diagnosis plan measured at rest: the machine stops at every point (1 s dwell), out and
+/// back, so that a reversal shows and a latency cannot (nothing moves while it reads).
+pub fn static_plan() -> Plan {
+    Plan { acquisition: Acquisition::Static { speed_mps: 0.05, dwell_s: 1.0 }, ..plan() }
+}
+
 /// A simulated campaign of a scenario at strength `a` (0: the clean campaign of the same seed).
 pub fn campaign(sc: &Scenario, a: f64, seed: u64) -> (Machine, SimConfig, Campaign, Vec<InjectedTruth>) {
     let m = machine(sc.precision);
-    let mut cfg = sim_config(&m, plan(), 1000 + seed);
+    let mut cfg = sim_config(&m, if sc.at_rest { static_plan() } else { plan() }, 1000 + seed);
     cfg.environment.air_temp_rate_k_per_h = sc.air_rate_per_unit * a;
+    cfg.environment.air_temp_cycle_k = sc.air_cycle_per_unit * a;
     let injections = if a == 0.0 {
         Vec::new()
     } else {

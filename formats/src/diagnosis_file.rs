@@ -136,6 +136,10 @@ pub struct CandidateEntry {
     pub share: f64,
     pub cv_gain: Option<f64>,
     pub without_dominant_p: Option<f64>,
+    /// For the candidate chosen: the corrected p-value of the reduction its refit achieved
+    /// (refuted, and not accepted, above the significance level).
+    #[serde(default)]
+    pub refit_p: Option<f64>,
     pub accepted: bool,
 }
 
@@ -219,6 +223,7 @@ impl DiagnosisFile {
                             share: c.share,
                             cv_gain: c.cv_gain,
                             without_dominant_p: c.without_dominant_p,
+                            refit_p: c.refit_p,
                             accepted: c.accepted,
                         })
                         .collect()

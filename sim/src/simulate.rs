@@ -19,6 +19,11 @@ pub struct EnvironmentSim {
     pub air: Air,
     /// Linear drift of the air temperature, kelvin per hour.
     pub air_temp_rate_k_per_h: f64,
+    /// Amplitude of the air-conditioning cycle of the air temperature, kelvin (0: none): the
+    /// air of a real laboratory swings around its set point rather than drifting one way.
+    pub air_temp_cycle_k: f64,
+    /// Period of that cycle, seconds.
+    pub air_temp_cycle_period_s: f64,
     /// Write air temperature, pressure and humidity into the campaign.
     pub record_air: bool,
     /// Machine (scale) temperature, degC.
@@ -34,6 +39,8 @@ impl Default for EnvironmentSim {
         EnvironmentSim {
             air: Air::standard(),
             air_temp_rate_k_per_h: 0.0,
+            air_temp_cycle_k: 0.0,
+            air_temp_cycle_period_s: 1800.0,
             record_air: false,
             machine_temp_c: 20.0,
             scale_alpha_per_k: [0.0; 3],
@@ -45,7 +52,12 @@ impl Default for EnvironmentSim {
 impl EnvironmentSim {
     /// True air at time `t`.
     pub fn air_at(&self, t_s: f64) -> Air {
-        Air { temp_c: self.air.temp_c + self.air_temp_rate_k_per_h * t_s / 3600.0, ..self.air }
+        let cycle = if self.air_temp_cycle_k == 0.0 {
+            0.0
+        } else {
+            self.air_temp_cycle_k * (std::f64::consts::TAU * t_s / self.air_temp_cycle_period_s).sin()
+        };
+        Air { temp_c: self.air.temp_c + self.air_temp_rate_k_per_h * t_s / 3600.0 + cycle, ..self.air }
     }
 }
 

@@ -149,7 +149,7 @@ fn two_effects_combined_are_both_found() {
     let spec: &'static str =
         Box::leak(format!("{}+air_refraction", drift.spec.replace("{a}", &ad.to_string())).into_boxed_str());
     let sc =
-        Scenario { id: "setup_drift+air_refraction", spec, reference: 1.0, air_rate_per_unit: aa, precision: false };
+        Scenario { air_rate_per_unit: aa, ..Scenario::new("setup_drift+air_refraction", spec, 1.0) };
     let mut both = 0;
     let mut floor = 0;
     for seed in 0..SEEDS {

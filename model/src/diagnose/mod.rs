@@ -125,6 +125,10 @@ pub struct CandidateReport {
     pub cv_gain: Option<f64>,
     /// Corrected p-value with the line that holds most of the excess left out (when one does).
     pub without_dominant_p: Option<f64>,
+    /// For the candidate chosen: the corrected p-value of the chi-square reduction that the
+    /// refit with it actually achieved. Above the significance level the candidate is refuted
+    /// (`accepted` false) and the round is chosen again without it.
+    pub refit_p: Option<f64>,
     pub accepted: bool,
 }
 
@@ -199,10 +203,12 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
     let mut found: Vec<FoundEffect> = Vec::new();
     let mut current = before.clone();
     let mut signals: Vec<Vec<f64>> = Vec::new();
-    let mut rounds = Vec::new();
+    let mut rounds: Vec<Vec<CandidateReport>> = Vec::new();
     let mut local: Option<String> = None;
+    // Candidates whose refit did not deliver the reduction their score promised.
+    let mut refuted: Vec<(Family, Option<f64>)> = Vec::new();
     loop {
-        if found.len() >= opts.max_effects {
+        if found.len() >= opts.max_effects || refuted.len() > MAX_REFUTED {
             break;
         }
         let refs: Vec<&dyn Effect> = selected.iter().map(|(_, e)| e.as_ref()).collect();
@@ -229,7 +235,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         let mut without: Option<(Fit<'_>, Vec<bool>)> = None;
         let mut chosen = None;
         for (k, e) in evaluated.iter_mut().enumerate() {
-            if !accept(e) {
+            if !accept(e) || refuted.contains(&(e.cand.family, e.cand.hyper)) {
                 continue;
             }
             if let (true, Some(g)) = (e.cand.family.global() && e.score.rank > 0, dominant) {
@@ -247,7 +253,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                 let (fw, mask) = without.as_ref().unwrap();
                 let sw = fw.score_masked(e.cand.effect.as_ref(), Some(mask));
                 let stats = &fw.solution().stats;
-                let p = f_test(&sw, stats.chi2, stats.dof as f64, e.cand.tests);
+                let p = f_test(sw.delta_chi2, sw.rank, stats.chi2, stats.dof as f64, e.cand.tests);
                 e.without_dominant = Some(corrected(p, e.cand.tests));
                 if corrected(p, e.cand.tests) > opts.alpha {
                     continue;
@@ -302,6 +308,7 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
                     share: e.share,
                     cv_gain: e.cv_gain,
                     without_dominant_p: e.without_dominant,
+                    refit_p: None,
                     accepted: Some(k) == chosen,
                 })
                 .collect(),
@@ -327,9 +334,32 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
             .collect();
         let p_value = corrected(best.p_value, best.cand.tests).min(1.0);
         drop(f);
-        selected.push((best.cand.family, best.cand.effect));
-        hypers.push(best.cand.hyper);
+        let (family, hyper, rank) = (best.cand.family, best.cand.hyper, best.score.rank);
+        selected.push((family, best.cand.effect));
+        let (work_before, shift_before) = (work.clone(), probe_shift.clone());
         let (sol, sig) = refit(layout, &mut work, opts, &selected, &geo, &mut probe_shift)?;
+        // The score is the linearised reduction at the current fit; the refit is what the
+        // effect explains. Where the two disagree (an extension nearly inside the model, whose
+        // Schur complement is ill-conditioned: a nonrigid coupling that the splines almost
+        // express, on a clean campaign at the noise floor), the effect explains nothing and is
+        // not named.
+        let realised = current.stats.chi2 - sol.stats.chi2;
+        let tests = best.cand.tests;
+        let refit_p = corrected(f_test(realised, rank, current.stats.chi2, current.stats.dof as f64, tests), tests).min(1.0);
+        if let Some(c) = rounds.last_mut().and_then(|r| r.iter_mut().find(|c| c.accepted)) {
+            c.refit_p = Some(refit_p);
+        }
+        if refit_p > opts.alpha {
+            if let Some(c) = rounds.last_mut().and_then(|r| r.iter_mut().find(|c| c.accepted)) {
+                c.accepted = false;
+            }
+            selected.pop();
+            work = work_before;
+            probe_shift = shift_before;
+            refuted.push((family, hyper));
+            continue;
+        }
+        hypers.push(hyper);
         signals = sig;
         let (id, coeffs) = sol.effects.last().cloned().expect("the new effect is fitted");
         found.push(FoundEffect {
@@ -550,6 +580,10 @@ fn propose(
 /// Readings a lost count needs on each side of its step to be told from a bad reading.
 const STEP_SIDE: usize = 3;
 
+/// How many chosen candidates a diagnosis may refute (their refit explains nothing) before it
+/// stops looking.
+const MAX_REFUTED: usize = 8;
+
 /// Refines a period by golden-section search on the periodogram around `p`.
 fn refine_period(obs: &Observations, geo: &Geometry, dirs: &[Vector3<f64>], z: &[f64], a: usize, p: f64) -> f64 {
     let len = geo.travel.ranges[a][1] - geo.travel.ranges[a][0];
@@ -576,11 +610,11 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate) -> Evaluated {
     let n = obs.len() as f64;
     let (chi2, dof) = (sol.stats.chi2, sol.stats.dof as f64);
     let k = score.rank as f64;
-    let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 || !consistent(&score, chi2) {
+    let (p_value, evidence) = if score.rank == 0 || dof - k < 1.0 || !consistent(score.delta_chi2, chi2) {
         (1.0, f64::NEG_INFINITY)
     } else {
-        let s2 = alternative_variance(&score, chi2, dof);
-        let p = f_test(&score, chi2, dof, cand.tests);
+        let s2 = alternative_variance(score.delta_chi2, score.rank, chi2, dof);
+        let p = f_test(score.delta_chi2, score.rank, chi2, dof, cand.tests);
         // BIC with the noise scale estimated under the alternative; the scanned hyper-parameter
         // counts as a parameter.
         let extra = if cand.hyper.is_some() { 1.0 } else { 0.0 };
@@ -592,15 +626,16 @@ fn evaluate(obs: &Observations, f: &Fit<'_>, cand: Candidate) -> Evaluated {
     Evaluated { cand, score, p_value, evidence, share, cv_gain: None, without_dominant: None }
 }
 
-/// P-value of the nested-model F-test of an effect's score against a fit with `chi2` on `dof`
-/// degrees of freedom, corrected for `tests` scanned hypotheses.
-fn f_test(score: &Score, chi2: f64, dof: f64, tests: usize) -> f64 {
-    let k = score.rank as f64;
-    if score.rank == 0 || dof - k < 1.0 || !consistent(score, chi2) {
+/// P-value of the nested-model F-test of a chi-square reduction `delta_chi2` by `rank` new
+/// parameters against a fit with `chi2` on `dof` degrees of freedom, corrected for `tests`
+/// scanned hypotheses.
+fn f_test(delta_chi2: f64, rank: usize, chi2: f64, dof: f64, tests: usize) -> f64 {
+    let k = rank as f64;
+    if rank == 0 || dof - k < 1.0 || !consistent(delta_chi2, chi2) {
         return 1.0;
     }
-    let s2 = alternative_variance(score, chi2, dof);
-    let fstat = (score.delta_chi2 / k) / s2;
+    let s2 = alternative_variance(delta_chi2, rank, chi2, dof);
+    let fstat = (delta_chi2 / k) / s2;
     (f_sf(k, dof - k, fstat) * tests as f64).min(1.0)
 }
 
@@ -609,8 +644,8 @@ fn f_test(score: &Score, chi2: f64, dof: f64, tests: usize) -> f64 {
 /// beyond that comes from a numerically singular Schur complement, an effect the campaign does
 /// not separate whatever rank was counted (a few lines of one station, for a probe offset or a
 /// nonrigid coupling): it is untestable, like an effect the model already expresses.
-fn consistent(score: &Score, chi2: f64) -> bool {
-    score.delta_chi2 <= chi2 * (1.0 + 1e-6)
+fn consistent(delta_chi2: f64, chi2: f64) -> bool {
+    delta_chi2 <= chi2 * (1.0 + 1e-6)
 }
 
 /// Survival function of the F distribution with `d1`, `d2` degrees of freedom at `fstat`.
@@ -629,8 +664,8 @@ fn f_sf(d1: f64, d2: f64, fstat: f64) -> f64 {
 }
 
 /// Variance of unit weight under the alternative (the fit extended by the effect).
-fn alternative_variance(score: &Score, chi2: f64, dof: f64) -> f64 {
-    (chi2 - score.delta_chi2).max(1e-300) / (dof - score.rank as f64)
+fn alternative_variance(delta_chi2: f64, rank: usize, chi2: f64, dof: f64) -> f64 {
+    (chi2 - delta_chi2).max(1e-300) / (dof - rank as f64)
 }
 
 /// Standardised residuals `r / sigma` of every reading of a fit.
