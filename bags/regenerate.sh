@@ -1,10 +1,17 @@
 #!/usr/bin/env bash
 # Regenerates the sample bags in bags/ by running the simulated node set over DDS on this
-# host (ROS_LOCALHOST_ONLY). Run from the repository root; takes about a minute.
+# host (ROS_LOCALHOST_ONLY). Run from the repository root; takes about a minute. With
+# --concealed it also remakes the concealed-effect campaigns (bags/concealed/regenerate.sh, CSV)
+# and node-set recordings (bags/concealed/regenerate_node_set.sh, about 17 minutes).
 #
-#   bags/regenerate.sh [DOMAIN]
+#   bags/regenerate.sh [--concealed] [DOMAIN]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+concealed=false
+if [ "${1:-}" = "--concealed" ]; then
+  concealed=true
+  shift
+fi
 domain="${1:-117}"
 cargo build -q --release -p volcal_cli -p volcal_nodes --bins
 volcal="${CARGO_TARGET_DIR:-target}/release/volcal"
@@ -24,3 +31,8 @@ rm -rf bags/sim_short bags/sim_tracer_short bags/sim_otf_batched
 for b in bags/sim_short bags/sim_tracer_short bags/sim_otf_batched; do
   "$volcal" bag info "$b"
 done
+
+if $concealed; then
+  bags/concealed/regenerate.sh
+  bags/concealed/regenerate_node_set.sh "$((domain + 1))"
+fi

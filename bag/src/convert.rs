@@ -101,6 +101,8 @@ pub fn position_event(m: &MachinePosition) -> PositionEvent {
         x: [m.x_m, m.y_m, m.z_m],
         probe_offset: m.probe_offset_m,
         velocity: m.velocity_mps,
+        position_id: m.position_id,
+        in_position: m.in_position,
         trigger_id: m.trigger_id,
         stamp_ns: m.header.stamp.to_nanos(),
     }
@@ -117,6 +119,8 @@ pub fn position_batch_events(b: &MachinePositionBatch) -> Result<Vec<PositionEve
             x: [b.x_m[k], b.y_m[k], b.z_m[k]],
             probe_offset: b.probe_offset_m,
             velocity: [0.0; 3],
+            position_id: b.position_id,
+            in_position: b.in_position && k + 1 == n,
             trigger_id: 0,
             stamp_ns: t0 + (k as f64 * b.sample_period_s * 1e9).round() as i64,
         })

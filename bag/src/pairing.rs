@@ -7,8 +7,10 @@
 //!   latch one message tagged with the trigger id; the three are matched by that id, in any
 //!   arrival order. `PROBE` triggers (centring) are not paired.
 //! - **interpolated** (on the fly): between `SEGMENT_START` and `SEGMENT_END` of a line, every
-//!   free-running reading is paired with the machine coordinates linearly interpolated at its
-//!   stamp (plus the configured clock offset) between the two bracketing machine samples.
+//!   free-running reading is paired with the machine coordinates interpolated at its stamp
+//!   (plus the configured clock offset) between the two bracketing machine samples: along the
+//!   cubic through their positions and velocities where the machine publishes consistent
+//!   velocities inside one motion, else along the straight line ([`volcal::path`]).
 //!
 //! Duplicated messages (same trigger id, or same stamp and line for free-running samples) are
 //! counted and ignored; out-of-order messages wait until their partners arrive. Pairs come out
@@ -16,7 +18,9 @@
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use volcal::campaign::ObsKind;
+use nalgebra::{Point3, Vector3};
 use volcal::environment::Air;
+use volcal::path::{self, PathSample};
 
 /// Trigger types (the `Trigger.msg` constants).
 pub mod trigger_type {
@@ -54,10 +58,27 @@ pub struct ReadingEvent {
 pub struct PositionEvent {
     pub x: [f64; 3],
     pub probe_offset: [f64; 3],
+    /// The machine's own velocity at `stamp_ns` (zero where its source has none).
     pub velocity: [f64; 3],
+    /// The motion in progress (or last reached) and whether the machine rests at its target:
+    /// [`volcal::path`] interpolates with the velocities only inside one motion.
+    pub position_id: u64,
+    pub in_position: bool,
     /// 0 unless latched by a trigger.
     pub trigger_id: u64,
     pub stamp_ns: i64,
+}
+
+impl PositionEvent {
+    fn path_sample(&self) -> PathSample {
+        PathSample {
+            stamp_ns: self.stamp_ns,
+            motion_id: self.position_id,
+            at_rest: self.in_position,
+            position: Point3::from(self.x),
+            velocity: Vector3::from(self.velocity),
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -449,15 +470,12 @@ impl Pairer {
                 self.stats.outside_segments += 1;
                 continue;
             };
-            let f = if gap > 0 { (t - p0.stamp_ns) as f64 / gap as f64 } else { 0.0 };
-            let mut x = [0.0; 3];
-            let mut v = p0.velocity;
-            for i in 0..3 {
-                x[i] = p0.x[i] + f * (p1.x[i] - p0.x[i]);
-                if gap > 0 {
-                    v[i] = (p1.x[i] - p0.x[i]) / (gap as f64 * 1e-9);
-                }
-            }
+            let (x, v) = if gap > 0 {
+                let (x, v) = path::between(&p0.path_sample(), &p1.path_sample(), t);
+                (x.coords.into(), v.into())
+            } else {
+                (p0.x, p0.velocity)
+            };
             let seg = &mut self.segments[si];
             let point = seg.next_point;
             let segment_end = seg.end_trigger;
@@ -593,6 +611,8 @@ mod tests {
                     x: [i as f64, 0.0, 0.0],
                     probe_offset: [0.0; 3],
                     velocity: [0.0; 3],
+                    position_id: 0,
+                    in_position: true,
                     trigger_id: id,
                     stamp_ns: stamp + 200_000,
                 }));
@@ -680,6 +700,8 @@ mod tests {
                 x: [0.1 * (tm - t0) as f64 * 1e-9, 0.2, 0.3],
                 probe_offset: [0.0, 0.0, -0.1],
                 velocity: [0.1, 0.0, 0.0],
+                position_id: 1,
+                in_position: false,
                 trigger_id: 0,
                 stamp_ns: tm,
             }));

@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::cell::{rclpy_python, Cell};
+use common::cell::{rclpy_python, Cell, CellState};
 use common::*;
 use nalgebra::Point3;
 use std::path::Path;
@@ -39,19 +39,30 @@ fn pairs(bag: &Path) -> Vec<SyncedPair> {
     out
 }
 
-/// The cell's published coordinates at `t_ns`, interpolated between its samples.
-fn cell_at(states: &[(i64, [f64; 3])], t_ns: i64) -> Option<[f64; 3]> {
-    let i = states.partition_point(|s| s.0 < t_ns);
+/// The cell's published path at `t_ns` between its two states around it: the straight line
+/// and the cubic Hermite curve through their positions and velocities (the recorder uses the
+/// curve inside a motion where the velocities agree with the positions, the line elsewhere).
+fn cell_at(states: &[CellState], t_ns: i64) -> Option<([f64; 3], [f64; 3])> {
+    let i = states.partition_point(|s| s.stamp_ns < t_ns);
     if i == states.len() {
         return None;
     }
-    let (t1, p1) = states[i];
-    if t1 == t_ns || i == 0 {
-        return (t1 == t_ns).then_some(p1);
+    let s1 = states[i];
+    if s1.stamp_ns == t_ns || i == 0 {
+        return (s1.stamp_ns == t_ns).then_some((s1.position, s1.position));
     }
-    let (t0, p0) = states[i - 1];
-    let f = (t_ns - t0) as f64 / (t1 - t0) as f64;
-    Some([0, 1, 2].map(|k| p0[k] + f * (p1[k] - p0[k])))
+    let s0 = states[i - 1];
+    let h = (s1.stamp_ns - s0.stamp_ns) as f64 * 1e-9;
+    let f = (t_ns - s0.stamp_ns) as f64 / (s1.stamp_ns - s0.stamp_ns) as f64;
+    let (f2, f3) = (f * f, f * f * f);
+    let line = [0, 1, 2].map(|k| s0.position[k] + f * (s1.position[k] - s0.position[k]));
+    let cubic = [0, 1, 2].map(|k| {
+        (2.0 * f3 - 3.0 * f2 + 1.0) * s0.position[k]
+            + (f3 - 2.0 * f2 + f) * h * s0.velocity[k]
+            + (3.0 * f2 - 2.0 * f3) * s1.position[k]
+            + (f3 - f2) * h * s1.velocity[k]
+    });
+    Some((line, cubic))
 }
 
 /// Solves the bag and compares with the truth the dry run wrote.
@@ -85,7 +96,7 @@ fn campaign_on_cell(
     name: &str,
     cell_args: &[&str],
     launch_args: &[&str],
-) -> (bool, String, Vec<(i64, [f64; 3])>, std::path::PathBuf) {
+) -> (bool, String, Vec<CellState>, std::path::PathBuf) {
     let lease = domain::lease().unwrap();
     let dir = volcal_tests::scratch(name);
     let cell = Cell::start(py, &dir, lease.id, cell_args);
@@ -114,7 +125,7 @@ fn static_campaign_on_an_rclpy_cell() {
     for p in &pairs {
         let nearest = states
             .iter()
-            .map(|(_, s)| (0..3).map(|k| (s[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
+            .map(|s| (0..3).map(|k| (s.position[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
             .fold(f64::MAX, f64::min);
         worst = worst.max(nearest);
     }
@@ -136,14 +147,24 @@ fn on_the_fly_campaign_on_an_rclpy_cell() {
     assert!(ok, "launch failed:\n{out}");
     assert!(out.contains("the recorder confirmed all 48 on-the-fly segments"), "{out}");
     let pairs = pairs(&bag);
-    // The pairs' coordinates are the cell's, interpolated at the reading's stamp.
-    let mut worst = 0.0f64;
+    // The pairs' coordinates are the cell's, interpolated at the reading's stamp: on the line
+    // or on the curve through its published positions and velocities.
+    let (mut worst, mut on_curve, mut apart) = (0.0f64, 0, 0.0f64);
     for p in &pairs {
         assert_eq!(p.pairing, SyncedPair::PAIRING_INTERPOLATED);
-        let c = cell_at(&states, p.header.stamp.to_nanos()).expect("a pair after the cell's last state");
-        worst = worst.max((Point3::from(c) - Point3::from(p.position_m)).norm());
+        let (line, cubic) = cell_at(&states, p.header.stamp.to_nanos()).expect("a pair after the cell's last state");
+        let at = Point3::from(p.position_m);
+        let (dl, dc) = ((Point3::from(line) - at).norm(), (Point3::from(cubic) - at).norm());
+        worst = worst.max(dl.min(dc));
+        if dc < dl {
+            on_curve += 1;
+            apart = apart.max((Point3::from(line) - Point3::from(cubic)).norm());
+        }
     }
-    eprintln!("{} interpolated pairs; largest distance to the cell's published path {worst:.3e} m", pairs.len());
+    eprintln!(
+        "{} interpolated pairs ({on_curve} on the curve through the cell's velocities, up to {apart:.3e} m from the line); largest distance to the cell's published path {worst:.3e} m",
+        pairs.len()
+    );
     assert!(pairs.len() > 1000, "{} pairs", pairs.len());
     assert!(worst < 1e-9, "a pair is {worst} m off the cell's published path");
     solves_to_truth(&bag, &truth, &dir);
@@ -232,7 +253,7 @@ fn tracer_campaign_on_an_rclpy_cell() {
         .map(|p| {
             states
                 .iter()
-                .map(|(_, s)| (0..3).map(|k| (s[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
+                .map(|s| (0..3).map(|k| (s.position[k] - p.position_m[k]).abs()).fold(0.0, f64::max))
                 .fold(f64::MAX, f64::min)
         })
         .fold(0.0, f64::max);

@@ -32,6 +32,7 @@ pub mod gauge;
 pub mod identify;
 pub mod kinematics;
 pub mod model;
+pub mod path;
 mod normal;
 mod nullspace;
 pub mod predict;

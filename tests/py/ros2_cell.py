@@ -8,7 +8,7 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   a new trajectory replaces the current one from the current state, header stamp 0 = start now,
   cubic Hermite between points when velocities are given (linear otherwise), hold after the
   last point; the joints follow the interpolated setpoint --lag seconds late;
-- logs every published state (stamp ns and the three axis positions) to --log as CSV;
+- logs every published state (stamp ns, the three axis positions and velocities) to --log as CSV;
 - plays faults after --fault-after seconds of motion: `missing` (joint y left out of the
   message), `nan` (joint y NaN), `stop` (no joint states for --stop-for seconds; negative:
   never again), `stuck` (joint y stops following).
@@ -81,7 +81,7 @@ class Cell(Node):
         self.sub = self.create_subscription(JointTrajectory, a.traj_topic, self.on_trajectory, 10)
         self.log = open(a.log, "w") if a.log else None
         if self.log:
-            self.log.write("stamp_ns,x_m,y_m,z_m\n")
+            self.log.write("stamp_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps\n")
         self.trajectories = 0
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
@@ -132,7 +132,7 @@ class Cell(Node):
         msg.name, msg.position, msg.velocity = names, values, speeds
         self.pub.publish(msg)
         if self.log:
-            self.log.write(f"{stamp_ns},{pos[0]!r},{pos[1]!r},{pos[2]!r}\n")
+            self.log.write(f"{stamp_ns},{pos[0]!r},{pos[1]!r},{pos[2]!r},{vel[0]!r},{vel[1]!r},{vel[2]!r}\n")
 
 
 def main():

@@ -81,8 +81,8 @@ impl Cell {
         cell
     }
 
-    /// Stops the cell and returns its published states `(stamp_ns, [x, y, z])`, in order.
-    pub fn stop(mut self) -> Vec<(i64, [f64; 3])> {
+    /// Stops the cell and returns its published states, in order.
+    pub fn stop(mut self) -> Vec<CellState> {
         super::signal(self.child.id() as i32, libc::SIGTERM);
         let t = Instant::now();
         while self.child.try_wait().unwrap().is_none() && t.elapsed() < Duration::from_secs(10) {
@@ -93,10 +93,22 @@ impl Cell {
             .skip(1)
             .filter_map(|l| {
                 let v: Vec<&str> = l.split(',').collect();
-                (v.len() == 4).then(|| (v[0].parse().unwrap(), [1, 2, 3].map(|k| v[k].parse().unwrap())))
+                (v.len() == 7).then(|| CellState {
+                    stamp_ns: v[0].parse().unwrap(),
+                    position: [1, 2, 3].map(|k| v[k].parse().unwrap()),
+                    velocity: [4, 5, 6].map(|k| v[k].parse().unwrap()),
+                })
             })
             .collect()
     }
+}
+
+/// One joint state the cell published (its three axis joints), as its log wrote it.
+#[derive(Clone, Copy, Debug)]
+pub struct CellState {
+    pub stamp_ns: i64,
+    pub position: [f64; 3],
+    pub velocity: [f64; 3],
 }
 
 impl Drop for Cell {

@@ -16,6 +16,7 @@ use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;
 use volcal::campaign::ObsKind;
 use volcal::environment::AirIndexEquation;
+use volcal::path::{self, PathSample};
 use volcal_formats::machine::{Machine, DEMO_MACHINE};
 use volcal_formats::plan::{load_plan, sim_config};
 use volcal_sim::{BeamLine, Plan, SimConfig};
@@ -107,13 +108,10 @@ fn info_of(i: &volcal_sim::Interferometer, instrument: &str) -> InstrumentInfo {
     }
 }
 
-/// One reflector truth sample: stamp, motion id, at rest, actual position, velocity.
-type ReflectorSample = (i64, u64, bool, Point3<f64>, Vector3<f64>);
-
 /// Recent reflector truth samples, to find the one for a position or interpolate in time.
 #[derive(Default)]
 struct ReflectorHistory {
-    samples: VecDeque<ReflectorSample>,
+    samples: VecDeque<PathSample>,
 }
 
 impl ReflectorHistory {
@@ -121,8 +119,9 @@ impl ReflectorHistory {
         if let Truth::Reflector { stamp_ns, position_id, settled, actual, velocity } = *t {
             // Kept in stamp order (DDS delivers one writer's samples in order; this guards
             // against anything else).
-            let i = self.samples.partition_point(|s| s.0 <= stamp_ns);
-            self.samples.insert(i, (stamp_ns, position_id, settled, actual, velocity));
+            let i = self.samples.partition_point(|s| s.stamp_ns <= stamp_ns);
+            let sample = PathSample { stamp_ns, motion_id: position_id, at_rest: settled, position: actual, velocity };
+            self.samples.insert(i, sample);
             // A few seconds at the machine's sampling rate: more than any reading waits.
             while self.samples.len() > 8192 {
                 self.samples.pop_front();
@@ -135,40 +134,21 @@ impl ReflectorHistory {
     /// a sample at or after `at_ns` (the simulated instrument never reads the future).
     fn actual(&self, at_ns: i64, position_id: Option<u64>) -> Option<Point3<f64>> {
         match position_id {
-            Some(id) => self.samples.iter().rev().find(|s| s.1 == id && s.2).map(|s| s.3),
+            Some(id) => self.samples.iter().rev().find(|s| s.motion_id == id && s.at_rest).map(|s| s.position),
             None => {
-                let i = self.samples.partition_point(|s| s.0 < at_ns);
+                let i = self.samples.partition_point(|s| s.stamp_ns < at_ns);
                 if i == self.samples.len() {
                     return None;
                 }
                 let s1 = &self.samples[i];
-                if i == 0 || s1.0 == at_ns {
-                    return (s1.0 == at_ns).then_some(s1.3);
+                if i == 0 || s1.stamp_ns == at_ns {
+                    return (s1.stamp_ns == at_ns).then_some(s1.position);
                 }
-                let s0 = &self.samples[i - 1];
-                Some(between(s0, s1, at_ns))
+                // Between samples: `volcal::path`'s rule, the one the recorder pairs with.
+                Some(path::between(&self.samples[i - 1], s1, at_ns).0)
             }
         }
     }
-}
-
-/// The actual position at `at_ns` between two truth samples: a cubic Hermite curve through
-/// their positions and velocities inside one motion (the reflector's path between samples is
-/// smooth there; a periodic pitch error of 16 mm sampled every millimetre keeps its
-/// amplitude to 1e-4), a straight line across a start or an arrival, where the velocity jumps.
-fn between(s0: &ReflectorSample, s1: &ReflectorSample, at_ns: i64) -> Point3<f64> {
-    let h = (s1.0 - s0.0) as f64;
-    let f = (at_ns - s0.0) as f64 / h;
-    if s0.1 != s1.1 || s0.2 || s1.2 {
-        return s0.3 + (s1.3 - s0.3) * f;
-    }
-    let h_s = h * 1e-9;
-    let (f2, f3) = (f * f, f * f * f);
-    let p = s0.3.coords * (2.0 * f3 - 3.0 * f2 + 1.0)
-        + s0.4 * (h_s * (f3 - 2.0 * f2 + f))
-        + s1.3.coords * (3.0 * f2 - 2.0 * f3)
-        + s1.4 * (h_s * (f3 - f2));
-    Point3::from(p)
 }
 
 /// Counter state shared by the simulated interferometer and tracer.
@@ -730,28 +710,6 @@ impl EnvironmentBackend for SimEnvironment {
 mod tests {
     use super::*;
 
-    #[test]
-    fn truth_between_samples_keeps_a_short_period() {
-        // A 16 mm periodic error of 1 um on X at 2 m/s, sampled at 2 kHz (every mm).
-        let (a, period, speed) = (1e-6, 0.016, 2.0);
-        let k = 2.0 * std::f64::consts::PI / period;
-        let sample = |t_ns: i64, id: u64, settled: bool| -> ReflectorSample {
-            let x = speed * t_ns as f64 * 1e-9;
-            let v = if settled { 0.0 } else { speed * (1.0 + a * k * (k * x).cos()) };
-            (t_ns, id, settled, Point3::new(x + a * (k * x).sin(), 0.0, 0.0), Vector3::new(v, 0.0, 0.0))
-        };
-        let (s0, s1) = (sample(3_000_000, 1, false), sample(3_500_000, 1, false));
-        let mut worst: f64 = 0.0;
-        for j in 0..=10 {
-            let t = 3_000_000 + j * 50_000;
-            worst = worst.max((between(&s0, &s1, t) - sample(t, 1, false).3).norm());
-        }
-        assert!(worst < 1e-4 * a, "Hermite off by {worst:e} m");
-        // Across an arrival (settled, velocity zero) the line is straight.
-        let s2 = (4_000_000, 1, true, Point3::new(0.008, 0.0, 0.0), Vector3::zeros());
-        let mid = between(&s1, &s2, 3_750_000);
-        assert!((mid - Point3::from((s1.3.coords + s2.3.coords) / 2.0)).norm() < 1e-15);
-    }
 
     #[test]
     fn counter_flags_mid_line_restarts_only() {
