@@ -37,7 +37,15 @@ pub struct Scenario {
 impl Scenario {
     /// A scenario on the diagnosis plan on the fly, standard machine, constant air.
     pub fn new(id: &'static str, spec: &'static str, reference: f64) -> Scenario {
-        Scenario { id, spec, reference, air_rate_per_unit: 0.0, precision: false, air_cycle_per_unit: 0.0, at_rest: false }
+        Scenario {
+            id,
+            spec,
+            reference,
+            air_rate_per_unit: 0.0,
+            precision: false,
+            air_cycle_per_unit: 0.0,
+            at_rest: false,
+        }
     }
 }
 

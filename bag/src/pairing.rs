@@ -16,9 +16,9 @@
 //! counted and ignored; out-of-order messages wait until their partners arrive. Pairs come out
 //! in completion order; consumers sort by stamp.
 
+use nalgebra::{Point3, Vector3};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use volcal::campaign::ObsKind;
-use nalgebra::{Point3, Vector3};
 use volcal::environment::Air;
 use volcal::path::{self, PathSample};
 

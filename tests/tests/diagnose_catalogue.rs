@@ -148,8 +148,7 @@ fn two_effects_combined_are_both_found() {
     let (ad, aa) = (diagnosis::strength_for_snr3(&drift, 0..SEEDS).0, diagnosis::strength_for_snr3(&air, 0..SEEDS).0);
     let spec: &'static str =
         Box::leak(format!("{}+air_refraction", drift.spec.replace("{a}", &ad.to_string())).into_boxed_str());
-    let sc =
-        Scenario { air_rate_per_unit: aa, ..Scenario::new("setup_drift+air_refraction", spec, 1.0) };
+    let sc = Scenario { air_rate_per_unit: aa, ..Scenario::new("setup_drift+air_refraction", spec, 1.0) };
     let mut both = 0;
     let mut floor = 0;
     for seed in 0..SEEDS {

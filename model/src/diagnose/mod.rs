@@ -345,7 +345,8 @@ pub fn diagnose(layout: &ModelLayout, obs: &Observations, opts: &DiagnoseOptions
         // not named.
         let realised = current.stats.chi2 - sol.stats.chi2;
         let tests = best.cand.tests;
-        let refit_p = corrected(f_test(realised, rank, current.stats.chi2, current.stats.dof as f64, tests), tests).min(1.0);
+        let refit_p =
+            corrected(f_test(realised, rank, current.stats.chi2, current.stats.dof as f64, tests), tests).min(1.0);
         if let Some(c) = rounds.last_mut().and_then(|r| r.iter_mut().find(|c| c.accepted)) {
             c.refit_p = Some(refit_p);
         }

@@ -710,7 +710,6 @@ impl EnvironmentBackend for SimEnvironment {
 mod tests {
     use super::*;
 
-
     #[test]
     fn counter_flags_mid_line_restarts_only() {
         let mut c = Counter::default();

@@ -230,7 +230,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             if let (Some(d), Some(t)) = (&mut dry, &truth) {
                 let (id, probe) = motion.as_ref().map_or((0, Vector3::zeros()), |m| (m.id, m.probe));
                 let actual = d.at(stamp, id, in_position, &position, &probe, &velocity);
-                let actual_velocity = if in_position { Vector3::zeros() } else { d.velocity(stamp, &position, &probe, &velocity) };
+                let actual_velocity =
+                    if in_position { Vector3::zeros() } else { d.velocity(stamp, &position, &probe, &velocity) };
                 t.publish(ReflectorTruth {
                     header: Header::at(stamp, "machine"),
                     position_id: id,
