@@ -74,6 +74,23 @@ pub fn read_bag(path: &Path) -> Result<BagCampaign> {
     Ok(BagCampaign { campaign: Campaign { meta, readings }, summary, recovery_note: note })
 }
 
+impl BagCampaign {
+    /// What the read found missing or damaged, in sentences for a report: the recovery note of
+    /// a bag that was not closed, and messages that `metadata.yaml` counts but the file does
+    /// not hold. Empty for a complete bag.
+    pub fn damage_notes(&self, path: &Path) -> Vec<String> {
+        let mut notes: Vec<String> = self.recovery_note.iter().cloned().collect();
+        if let (None, Some(listed)) = (&self.recovery_note, self.summary.metadata_count) {
+            notes.push(format!(
+                "{}: metadata.yaml lists {listed} messages, the file holds {}",
+                path.display(),
+                self.summary.messages
+            ));
+        }
+        notes
+    }
+}
+
 /// Reads the synchronised pairs of a bag as a campaign; a recovery note goes to stderr.
 pub fn read(path: &Path) -> Result<Campaign> {
     let b = read_bag(path)?;
@@ -83,11 +100,41 @@ pub fn read(path: &Path) -> Result<Campaign> {
     Ok(b.campaign)
 }
 
+/// Reads a campaign (CSV or bag) with what the read found missing or damaged, in sentences:
+/// a bag's [`BagCampaign::damage_notes`], and readings without environment records (they
+/// cannot be compensated for the air or the machine temperature, whose effects then show up as
+/// `air_refraction` or `material_expansion`).
+pub fn load_campaign_noted(path: &Path) -> Result<(Campaign, Vec<String>)> {
+    let (campaign, mut notes) = if is_bag(path) {
+        let b = read_bag(path)?;
+        let notes = b.damage_notes(path);
+        (b.campaign, notes)
+    } else {
+        (load_campaign(path)?, Vec::new())
+    };
+    let n = campaign.readings.len();
+    let air = campaign.readings.iter().filter(|r| r.air.is_some()).count();
+    let temp = campaign.readings.iter().filter(|r| r.machine_temp_c.is_some()).count();
+    match (air, temp) {
+        (0, 0) => notes.push(
+            "no environment records with the readings (no air, no machine temperatures): they are taken as the interferometer reported them".into(),
+        ),
+        (a, _) if a < n => notes.push(format!("{} of {n} readings have no air record", n - a)),
+        _ => {}
+    }
+    Ok((campaign, notes))
+}
+
+/// Whether `path` names a bag (a directory, or an `.mcap` file) rather than a campaign CSV.
+pub fn is_bag(path: &Path) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    ext == "mcap" || path.is_dir()
+}
+
 /// Reads a campaign from CSV, or from a bag (a directory with `metadata.yaml`, or an `.mcap`
 /// file) recorded by the node set.
 pub fn load_campaign(path: &Path) -> Result<Campaign> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext == "mcap" || path.is_dir() {
+    if is_bag(path) {
         return read(path);
     }
     let r = campaign_csv::read(path)?;
@@ -119,5 +166,43 @@ pub fn input_sha256(path: &Path) -> Result<String> {
         Ok(format!("{:x}", h.finalize()))
     } else {
         sha256_file(path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Readings without environment records are named, whatever the input's format.
+    #[test]
+    fn readings_without_air_are_noted() {
+        let dir = std::env::temp_dir().join(format!("volcal-bag-noted-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let head = "# volcal campaign v1\n# wavelength_vac_m: 0.00000063299121258\n# readings: compensated\n";
+        let rows = |air: &dyn Fn(usize) -> String| -> String {
+            (0..4).map(|k| format!("beam,0,0,{k},{}e-3,{}e-2,0.2,-0.3,0,0,-0.1{}\n", k, k, air(k))).collect()
+        };
+        let none = dir.join("none.csv");
+        std::fs::write(
+            &none,
+            format!("{head}kind,station,beam,t_s,l_m,x_m,y_m,z_m,px_m,py_m,pz_m\n{}", rows(&|_| String::new())),
+        )
+        .unwrap();
+        let (c, notes) = load_campaign_noted(&none).unwrap();
+        assert_eq!(c.readings.len(), 4);
+        assert!(notes.len() == 1 && notes[0].starts_with("no environment records"), "{notes:?}");
+        let some = dir.join("some.csv");
+        let air = |k: usize| if k < 3 { ",20,101325,50".to_string() } else { ",,,".to_string() };
+        std::fs::write(
+            &some,
+            format!(
+                "{head}kind,station,beam,t_s,l_m,x_m,y_m,z_m,px_m,py_m,pz_m,air_temp_c,air_pressure_pa,air_rh_pct\n{}",
+                rows(&air)
+            ),
+        )
+        .unwrap();
+        let (_, notes) = load_campaign_noted(&some).unwrap();
+        assert_eq!(notes, vec!["1 of 4 readings have no air record".to_string()]);
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

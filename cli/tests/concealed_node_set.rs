@@ -305,6 +305,48 @@ fn committed_node_set_bags_are_diagnosed() {
     report_table(&table, &failures);
 }
 
+/// A damaged recording (item 3): the committed beam-break bag with its MCAP cut at 75 % of its
+/// bytes, as a recorder killed during the third device position leaves it. The diagnosis runs
+/// on what was recovered, says so at the head of the report and in the JSON (`input`), and
+/// still names the break, which the second position recorded.
+#[test]
+fn a_damaged_bag_is_diagnosed_on_what_was_recovered() {
+    let src = repo().join("bags/concealed/node_set/recording_08");
+    let machine = repo().join("launch_configs/machines/diagnosis_cmm.yaml");
+    let bag = scratch("damaged-bag").join("recording_08");
+    std::fs::create_dir_all(&bag).unwrap();
+    for f in std::fs::read_dir(&src).unwrap() {
+        let f = f.unwrap().path();
+        let to = bag.join(f.file_name().unwrap());
+        if f.extension().is_some_and(|e| e == "mcap") {
+            let bytes = std::fs::read(&f).unwrap();
+            std::fs::write(&to, &bytes[..bytes.len() * 3 / 4]).unwrap();
+        } else {
+            std::fs::copy(&f, &to).unwrap();
+        }
+    }
+    let full = load_campaign(&src).unwrap().readings.len();
+    let (file, report) = diagnose(&bag, &machine);
+    eprintln!("{}", report.lines().take(3).collect::<Vec<_>>().join("\n"));
+    assert!(file.n_readings < full && file.n_readings > full / 2, "{} of {full} readings", file.n_readings);
+    assert!(
+        file.input.iter().any(|n| n.contains("not closed") && n.contains("recovered")),
+        "the JSON does not say what was recovered: {:?}",
+        file.input
+    );
+    assert!(report.starts_with("Input: "), "the report does not start with what was missing:\n{report}");
+    let ids: Vec<&str> = file.effects.iter().map(|e| e.id.as_str()).collect();
+    assert_eq!(ids.first(), Some(&"beam_break"), "named {ids:?}");
+    let e = &file.effects[0];
+    assert!(e.statement.contains("station 1 beam 4"), "{}", e.statement);
+    let (step, u) = (e.parameters["step_m"], e.uncertainty["step_m"]);
+    eprintln!(
+        "{} of {full} readings recovered; beam_break step {step:.4e} +- {u:.2e} m (injected -1.3e-6)",
+        file.n_readings
+    );
+    assert!((step + 1.3e-6).abs() < 3.0 * u, "step {step} +- {u}");
+}
+
 fn all_cases() -> Vec<Case> {
     vec![
         Case { name: "clean", seed: 11, precision: false, inject: "", extra: &[] },

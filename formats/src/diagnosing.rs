@@ -21,6 +21,17 @@ pub struct Diagnosed {
 }
 
 impl Diagnosed {
+    /// Adds what reading the input found missing or damaged (`volcal_bag::campaign::
+    /// load_campaign_noted`) to the file and at the head of the report.
+    pub fn with_input_notes(mut self, notes: Vec<String>) -> Diagnosed {
+        if !notes.is_empty() {
+            let head: String = notes.iter().map(|n| format!("Input: {n}\n")).collect();
+            self.report = head + "\n" + &self.report;
+            self.file.input = notes;
+        }
+        self
+    }
+
     /// The refit model (the rigid-body model fitted together with the named effects) as a
     /// model file; with nothing named it is the plain fit. Its warnings name the effects that
     /// were modelled, since the model file has no place for their parameters.

@@ -172,6 +172,11 @@ pub struct DiagnosisFile {
     /// (absent from files of earlier versions).
     #[serde(default)]
     pub lines: Vec<LineEntry>,
+    /// What reading the input found missing or damaged (a bag the recorder did not close,
+    /// messages that `metadata.yaml` lists but the file lacks, no environment records), in
+    /// sentences; the diagnosis ran on what was read. Empty for a complete input.
+    #[serde(default)]
+    pub input: Vec<String>,
 }
 
 impl DiagnosisFile {
@@ -230,6 +235,7 @@ impl DiagnosisFile {
                 })
                 .collect(),
             lines: LineEntry::of(d, obs),
+            input: Vec::new(),
         }
     }
 

@@ -62,7 +62,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let diagnose: bool = node.args.get_or("diagnose", false)?;
     node.warn_unused_parameters();
     let started = Instant::now();
-    let campaign = campaign::load_campaign(&bag)?;
+    let (campaign, input_notes) = campaign::load_campaign_noted(&bag)?;
     log::info!("replaying {} pairs from {}", campaign.readings.len(), bag.display());
     let provenance = Provenance {
         input: bag.display().to_string(),
@@ -73,12 +73,15 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     };
     let source = bag.display().to_string();
     let (model, diagnosis) = if diagnose {
-        let d = diagnose_campaign(&campaign, &machine, &source, provenance.clone())?;
+        let d = diagnose_campaign(&campaign, &machine, &source, provenance.clone())?.with_input_notes(input_notes);
         print!("{}", d.report);
         let model = d.refit_model(provenance);
         let which = which_model(&d.file.effects.iter().map(|e| e.id.as_str()).collect::<Vec<_>>(), &out);
         (model, Some(diagnosis_msg(&d.file, &which, false, now_ns())?))
     } else {
+        for n in &input_notes {
+            log::warn!("{n}");
+        }
         let solved = solve_campaign(&campaign, machine, &source, provenance)?;
         print!(
             "{}",
