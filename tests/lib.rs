@@ -104,7 +104,9 @@ pub fn gauge_distance(
     }
     (max, (s2 / n as f64).sqrt())
 }
+pub mod auto_study;
 pub mod diagnosis;
+pub mod truth_families;
 
 /// A volumetric error field after removing the best-fitting rigid-body motion `t + w x X`: what
 /// remains of it in the machine's own frame, where a rigid motion of the whole volume is not an

@@ -9,7 +9,7 @@ use volcal::{Axis, ErrorFunction};
 use volcal_bag::campaign::{load_campaign, provenance};
 use volcal_formats::campaign_csv;
 use volcal_formats::machine::Machine;
-use volcal_formats::model_file::{self, LoadedModel};
+use volcal_formats::model_file;
 use volcal_formats::plan::{load_plan, sim_config};
 use volcal_formats::solving::{compare_with_truth, probe_offsets, solve_campaign, summary, Solved};
 use volcal_formats::truth_file::TruthFile;
@@ -132,7 +132,10 @@ pub fn solve_cmd(campaign_path: &Path, machine_path: &Path, out: &Path) -> Resul
         solved.solution.iterations
     );
     solved.file.write(out)?;
-    print!("{}", summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign)));
+    print!(
+        "{}",
+        summary(&solved.solution.model, &solved.solution.uncertainty(), &solved.file, &probe_offsets(&campaign))
+    );
     println!("\nwrote model to {}", out.display());
     let status = if !solved.solution.converged {
         SolveStatus::NotConverged
@@ -202,7 +205,8 @@ pub fn read_points(path: &Path) -> Result<(Vec<Point3<f64>>, Option<Vec<Vector3<
 
 /// `volcal predict`.
 pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize> {
-    let LoadedModel { model, covariance, .. } = model_file::load(model_path)?;
+    let loaded = model_file::load(model_path)?;
+    let (model, unc) = (&loaded.model, loaded.uncertainty());
     let (pts, offs) = read_points(points)?;
     let travel = model.layout.travel;
     let big = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
@@ -219,21 +223,30 @@ pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize
     let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
     let with_p = offs.is_some();
-    writeln!(w, "x_m,y_m,z_m{},ex_m,ey_m,ez_m,u95_m", if with_p { ",px_m,py_m,pz_m" } else { "" })?;
+    writeln!(w, "x_m,y_m,z_m{},ex_m,ey_m,ez_m,u95_m,determined", if with_p { ",px_m,py_m,pz_m" } else { "" })?;
     let pb = bar(pts.len() as u64, "predicting");
+    let mut undetermined = 0;
     for (i, x) in pts.iter().enumerate() {
         let p = offs.as_ref().map(|o| o[i]).unwrap_or_else(Vector3::zeros);
-        let pe = predict::predict(&model, &covariance, x, &p);
-        let e = model.error(x, &p);
+        let pe = predict::predict(model, &unc, x, &p);
+        let values = error_fields(model, &pe);
+        undetermined += !pe.is_determined() as usize;
         if with_p {
-            writeln!(w, "{},{},{},{},{},{},{},{},{},{}", x.x, x.y, x.z, p.x, p.y, p.z, e.x, e.y, e.z, pe.u95())?;
+            writeln!(w, "{},{},{},{},{},{},{values}", x.x, x.y, x.z, p.x, p.y, p.z)?;
         } else {
-            writeln!(w, "{},{},{},{},{},{},{}", x.x, x.y, x.z, e.x, e.y, e.z, pe.u95())?;
+            writeln!(w, "{},{},{},{values}", x.x, x.y, x.z)?;
         }
         pb.inc(1);
     }
     pb.finish_and_clear();
     w.flush()?;
+    if undetermined > 0 {
+        eprintln!(
+            "warning: the data do not determine the error at {undetermined} of {} point(s) (determined = 0, no value): {}",
+            pts.len(),
+            volcal_formats::report::what_to_measure(model, &unc, &Vector3::zeros())
+        );
+    }
     Ok(pts.len())
 }
 
@@ -242,44 +255,56 @@ pub fn map_cmd(model_path: &Path, step: f64, probe: Vector3<f64>, out: &Path) ->
     if !(step > 0.0 && step.is_finite()) {
         bail!("--step must be a positive number of metres, got {step}");
     }
-    let LoadedModel { model, covariance, .. } = model_file::load(model_path)?;
+    let loaded = model_file::load(model_path)?;
+    let (model, unc) = (&loaded.model, loaded.uncertainty());
     let pts = predict::grid(&model.layout.travel, step);
     if pts.len() > 20_000_000 {
         bail!("--step {step} m gives {} grid points; use a coarser step (is it in millimetres?)", pts.len());
     }
     let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
-    writeln!(w, "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,e_norm_m,u95_m")?;
+    writeln!(w, "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,e_norm_m,u95_m,determined")?;
     let pb = bar(pts.len() as u64, "mapping");
+    let mut undetermined = 0;
     for x in &pts {
-        let pe = predict::predict(&model, &covariance, x, &probe);
-        let e = model.error(x, &probe);
-        writeln!(
-            w,
-            "{},{},{},{},{},{},{},{},{},{},{}",
-            x.x,
-            x.y,
-            x.z,
-            probe.x,
-            probe.y,
-            probe.z,
-            e.x,
-            e.y,
-            e.z,
-            e.norm(),
-            pe.u95()
-        )?;
+        let pe = predict::predict(model, &unc, x, &probe);
+        let values = if pe.is_determined() {
+            let e = model.error(x, &probe);
+            format!("{},{},{},{},{},1", e.x, e.y, e.z, e.norm(), pe.u95())
+        } else {
+            undetermined += 1;
+            ",,,,,0".to_string()
+        };
+        writeln!(w, "{},{},{},{},{},{},{values}", x.x, x.y, x.z, probe.x, probe.y, probe.z)?;
         pb.inc(1);
     }
     pb.finish_and_clear();
     w.flush()?;
+    if undetermined > 0 {
+        eprintln!(
+            "warning: the data do not determine the error at {undetermined} of {} grid point(s) (determined = 0, no value): {}",
+            pts.len(),
+            volcal_formats::report::what_to_measure(model, &unc, &probe)
+        );
+    }
     Ok(pts.len())
+}
+
+/// `ex_m,ey_m,ez_m,u95_m,determined` of a prediction: no numbers where the data do not
+/// determine the error (the minimum-norm value there means nothing).
+fn error_fields(model: &volcal::ErrorModel, pe: &predict::PointError) -> String {
+    if !pe.is_determined() {
+        return ",,,,0".into();
+    }
+    let e = model.error(&pe.x, &pe.p);
+    format!("{},{},{},{},1", e.x, e.y, e.z, pe.u95())
 }
 
 /// `volcal report`: the summary, and optionally per-axis compensation tables.
 pub fn report_cmd(model_path: &Path, compensation_dir: Option<&Path>, points: usize) -> Result<String> {
-    let LoadedModel { model, covariance, file } = model_file::load(model_path)?;
-    let mut text = summary(&model, &covariance, &file, &[]);
+    let loaded = model_file::load(model_path)?;
+    let (model, unc, file) = (&loaded.model, loaded.uncertainty(), &loaded.file);
+    let mut text = summary(model, &unc, file, &[]);
     if let Some(dir) = compensation_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         for a in Axis::ALL {
@@ -300,7 +325,7 @@ pub fn report_cmd(model_path: &Path, compensation_dir: Option<&Path>, points: us
                 file.gauge.name()
             )?;
             writeln!(w, "{}_m,{},{}", a.letter().to_ascii_lowercase(), head.join(","), sig.join(","))?;
-            for row in predict::compensation_table(&model, &covariance, a, points) {
+            for row in predict::compensation_table(model, &unc, a, points) {
                 let v: Vec<String> = row.values.iter().map(|v| v.to_string()).collect();
                 let s: Vec<String> = row.sigmas.iter().map(|v| v.to_string()).collect();
                 writeln!(w, "{},{},{}", row.q_m, v.join(","), s.join(","))?;
@@ -334,8 +359,14 @@ pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
     let t = TruthFile::load(&truth)?;
     let (tm, _) = t.model.to_model()?;
     let offs = probe_offsets(&load_campaign(&campaign)?);
-    let c =
-        compare_with_truth(&solved.solution.model, &solved.solution.covariance, &tm, solved.machine.gauge, &offs, 0.1);
+    let c = compare_with_truth(
+        &solved.solution.model,
+        &solved.solution.uncertainty(),
+        &tm,
+        solved.machine.gauge,
+        &offs,
+        0.1,
+    );
     println!(
         "\nAgainst the simulation truth (gauge-aligned, 0.1 m grid, {} probe offsets): volumetric error RMS {:.4} um, max {:.4} um; predicted standard uncertainty RMS {:.4} um",
         offs.len(),

@@ -53,7 +53,8 @@ pub fn model_difference(
     for x in predict::grid(&a.layout.travel, step) {
         for p in offsets {
             d2 += (a.error(&x, p) - b.error(&x, p)).norm_squared();
-            v2 += predict::predict(a, ca, &x, p).cov.trace() + predict::predict(b, cb, &x, p).cov.trace();
+            v2 += predict::predict(a, &predict::Uncertainty::determined(ca), &x, p).cov.trace()
+                + predict::predict(b, &predict::Uncertainty::determined(cb), &x, p).cov.trace();
             n += 1;
         }
     }
@@ -102,8 +103,8 @@ pub fn run(
     )?;
     let m = model_file::load(&model)?;
     let g = offline.machine.gauge;
-    let chain = compare_with_truth(&m.model, &m.covariance, truth, g, offsets, 0.1);
-    let off = compare_with_truth(&offline.solution.model, &offline.solution.covariance, truth, g, offsets, 0.1);
+    let chain = compare_with_truth(&m.model, &m.uncertainty(), truth, g, offsets, 0.1);
+    let off = compare_with_truth(&offline.solution.model, &offline.solution.uncertainty(), truth, g, offsets, 0.1);
     let (d, s) =
         model_difference(&m.model, &m.covariance, &offline.solution.model, &offline.solution.covariance, offsets, 0.1);
     println!(

@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use volcal::Axis;
 use volcal_formats::compensation::{self, CompFileType, Residual};
-use volcal_formats::model_file::{self, LoadedModel};
+use volcal_formats::model_file;
 use volcal_formats::{isg, sinumerik};
 
 /// The export formats.
@@ -76,7 +76,8 @@ fn write(dir: &Path, name: &str, text: &str) -> Result<()> {
 /// Writes the files of `opts.format` for the model in `model_path` into `out`; returns what it
 /// printed.
 pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result<String> {
-    let LoadedModel { model, covariance, file } = model_file::load(model_path)?;
+    let loaded = model_file::load(model_path)?;
+    let (model, file, unc) = (&loaded.model, &loaded.file, loaded.uncertainty());
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let travel = model.layout.travel;
     let centre = Point3::from(Vector3::from_fn(|i, _| 0.5 * (travel.ranges[i][0] + travel.ranges[i][1])));
@@ -86,8 +87,9 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         Format::Linuxcnc => {
             let step = opts.step_m.unwrap_or(0.010);
             let point = opts.point.unwrap_or(centre);
+            compensation::require_determined(model, &unc, &point, &p, false)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let tables = compensation::linuxcnc(&model, step, &point, &p, b)?;
+            let tables = compensation::linuxcnc(model, step, &point, &p, b)?;
             for t in &tables {
                 let name = format!("{}.comp", t.axis.letter().to_ascii_lowercase());
                 write(out, &name, &t.linuxcnc_text(opts.comp_type))?;
@@ -101,8 +103,9 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         }
         Format::Isg => {
             let step = opts.step_m.unwrap_or(0.010);
+            compensation::require_determined(model, &unc, &centre, &p, true)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let tables = isg::isg(&model, step)?;
+            let tables = isg::isg(model, step)?;
             let comment = format!("volcal ISG CSV export (machine {}), model {}", file.topology, model_path.display());
             for t in &tables {
                 let name = format!("isg_{}.csv", t.axis.letter().to_ascii_lowercase());
@@ -122,8 +125,9 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         Format::Sinumerik => {
             let step = opts.step_m.unwrap_or(0.020);
             let point = opts.point.unwrap_or(centre);
+            compensation::require_determined(model, &unc, &point, &p, false)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let (eec, cec) = sinumerik::sinumerik(&model, step, &point, &p)?;
+            let (eec, cec) = sinumerik::sinumerik(model, step, &point, &p)?;
             let comment =
                 format!("volcal SINUMERIK export (machine {}), model {}", file.topology, model_path.display());
             write(out, "eec.mpf", &sinumerik::eec_text(&eec, b, &comment))?;
@@ -148,7 +152,7 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         }
         Format::Grid => {
             let step = opts.step_m.unwrap_or(0.050);
-            let pts = compensation::grid(&model, &covariance, step, &p)?;
+            let pts = compensation::grid(model, &unc, step, &p)?;
             let mut csv = format!("{}\n", volcal_formats::compensation_grid::GRID_HEADER);
             for (x, e, u) in &pts {
                 let _ = writeln!(

@@ -142,7 +142,7 @@ pub fn paper_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         volcal_bag::campaign::provenance(&campaign_path, &machine_path)?,
     );
     file.write(&model_path)?;
-    print!("{}", volcal_formats::solving::summary(&sol.model, &sol.covariance, &file, &[Vector3::zeros()]));
+    print!("{}", volcal_formats::solving::summary(&sol.model, &sol.uncertainty(), &file, &[Vector3::zeros()]));
     println!(
         "\nSolve: {} readings from nominal stations {:.0} mm off, Levenberg-Marquardt {} iteration(s), converged: {}, {:.0} ms (this build; see README for the benchmark)\nwrote model to {}\n",
         sol.stats.n_obs,
@@ -158,9 +158,10 @@ pub fn paper_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
 
     let p0 = Vector3::zeros();
     let step = 0.035;
-    let e = predict::max_error(&sol.model, &sol.covariance, &p0, step);
+    let e = predict::max_error(&sol.model, &sol.uncertainty(), &p0, step);
     let n = truth.layout.n_params;
-    let et = predict::max_error(&truth, &Mat::zeros(n, n), &p0, step);
+    let zero = Mat::zeros(n, n);
+    let et = predict::max_error(&truth, &predict::Uncertainty::determined(&zero), &p0, step);
     let mm = |x: &Point3<f64>| format!("({:.0}, {:.0}, {:.0}) mm", x.x * 1e3, x.y * 1e3, x.z * 1e3);
     println!(
         "\nLargest volumetric error |e| (eq. 3): identified {:.2} um (U95 {:.2} um) at {}, {}; truth {:.2} um at {}; the paper found {:.2} um at the limit of its volume.",
@@ -172,7 +173,7 @@ pub fn paper_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         mm(&et.at.x),
         paper::PAPER_MAX_VOLUMETRIC_M * 1e6
     );
-    let c = compare_with_truth(&sol.model, &sol.covariance, &truth, machine.gauge, &[p0], 0.035);
+    let c = compare_with_truth(&sol.model, &sol.uncertainty(), &truth, machine.gauge, &[p0], 0.035);
     println!(
         "Against the simulation truth (gauge-aligned, 35 mm grid): volumetric error RMS {:.3} um, max {:.3} um; predicted standard uncertainty RMS {:.3} um\n",
         c.rms_m * 1e6,
@@ -189,7 +190,7 @@ pub fn paper_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
         .map(|(a, s)| volcal::validate::axis_line(&travel, *a, &Point3::new(s[0], s[1], s[2])))
         .collect();
     lines.extend(volcal::validate::body_diagonals(&travel));
-    let results = validation::run(&sol.model, &sol.covariance, &lines, 11, &p0, Some(&measurer));
+    let results = validation::run(&sol.model, &sol.uncertainty(), &lines, 11, &p0, Some(&measurer));
     let reference: Vec<(&str, f64)> =
         paper::PAPER_AXIS_DIFFERENCES_UM.iter().chain(paper::PAPER_DIAGONAL_DIFFERENCES_UM.iter()).cloned().collect();
     println!("Validation (paper figures 7-9 and 12): positioning deviation along each line, predicted from the model (U95: k = 2) and measured by a simulated laser interferometer (5 bidirectional runs)");

@@ -5,7 +5,6 @@
 //! ([`volcal_sim::line_measurement`]).
 
 use anyhow::{bail, Context, Result};
-use faer::Mat;
 use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use std::fmt::Write as _;
@@ -14,7 +13,7 @@ use std::path::Path;
 use volcal::validate::{self, Line, LineComparison, PositioningPoint};
 use volcal::{Axis, ErrorModel, Travel};
 use volcal_formats::machine::Machine;
-use volcal_formats::model_file::{self, LoadedModel};
+use volcal_formats::model_file;
 use volcal_formats::truth_file::TruthFile;
 use volcal_sim::line_measurement::measure_line;
 use volcal_sim::{Interferometer, VirtualMachine};
@@ -82,7 +81,7 @@ pub struct LineResult {
 /// Predicts every line at `points` equally spaced targets and, with a measurer, measures it.
 pub fn run(
     model: &ErrorModel,
-    cov: &Mat<f64>,
+    unc: &volcal::predict::Uncertainty<'_>,
     lines: &[Line],
     points: usize,
     probe: &Vector3<f64>,
@@ -93,7 +92,7 @@ pub fn run(
         .iter()
         .map(|line| {
             let targets = line.targets(points);
-            let predicted = validate::predict_positioning(model, cov, line, probe, &targets);
+            let predicted = validate::predict_positioning(model, unc, line, probe, &targets);
             let comparison = measurer.map(|m| {
                 let meas = measure_line(&m.machine, &m.interferometer, line, probe, &targets, m.runs, &mut rng);
                 validate::compare(line, &predicted, &meas.as_pairs())
@@ -121,13 +120,17 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
         }
         let _ = writeln!(out, "{head}");
         for (i, p) in r.predicted.iter().enumerate() {
-            let mut row = format!(
-                "  {:>8.1}  {:>26}  {:>11.3}  {:>11.3}",
-                p.s_m * 1e3,
-                mm(&p.x),
-                p.deviation_m * 1e6,
-                2.0 * p.sigma_m * 1e6
-            );
+            let mut row = if p.sigma_m.is_finite() {
+                format!(
+                    "  {:>8.1}  {:>26}  {:>11.3}  {:>11.3}",
+                    p.s_m * 1e3,
+                    mm(&p.x),
+                    p.deviation_m * 1e6,
+                    2.0 * p.sigma_m * 1e6
+                )
+            } else {
+                format!("  {:>8.1}  {:>26}  {:>24}", p.s_m * 1e3, mm(&p.x), "not determined")
+            };
             if let Some(k) = r.comparison.as_ref().map(|c| &c.points[i]) {
                 row.push_str(&format!("  {:>11.3}  {:>7.3}", k.measured_m * 1e6, k.difference_m * 1e6));
             }
@@ -209,7 +212,8 @@ pub fn validate_cmd(a: &ValidateArgs<'_>) -> Result<String> {
     if a.runs == 0 {
         bail!("--runs must be at least 1");
     }
-    let LoadedModel { model, covariance, .. } = model_file::load(a.model)?;
+    let loaded = model_file::load(a.model)?;
+    let model = &loaded.model;
     let lines = a.lines.lines(&model.layout.travel);
     for l in &lines {
         if !(l.length() > 0.0) {
@@ -220,7 +224,7 @@ pub fn validate_cmd(a: &ValidateArgs<'_>) -> Result<String> {
         Some(t) => Some(Measurer::from_files(t, a.machine, a.runs, a.seed)?),
         None => None,
     };
-    let results = run(&model, &covariance, &lines, a.points, &a.probe, measurer.as_ref());
+    let results = run(model, &loaded.uncertainty(), &lines, a.points, &a.probe, measurer.as_ref());
     let mut text = format(&results, &[]);
     if let Some(m) = &measurer {
         let _ = writeln!(

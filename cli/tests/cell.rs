@@ -74,7 +74,7 @@ fn solves_to_truth(bag: &Path, truth: &Path, dir: &Path) {
     let campaign = volcal_bag::campaign::load_campaign(bag).unwrap();
     let offsets = probe_offsets(&campaign);
     let m = &solved.solution;
-    let cmp = compare_with_truth(&m.model, &m.covariance, &truth_model, solved.file.gauge, &offsets, 0.1);
+    let cmp = compare_with_truth(&m.model, &m.uncertainty(), &truth_model, solved.file.gauge, &offsets, 0.1);
     let r = solved.file.residuals.as_ref().unwrap();
     eprintln!(
         "cell bag vs truth: RMS {:.3} um, max {:.3} um, predicted sigma RMS {:.3} um; residual RMS {:.4} um, chi2/dof {:.3}",

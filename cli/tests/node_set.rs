@@ -110,7 +110,7 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     let (solved_off, _) = solve_cmd(&csv, &machine_path, &model_off_path).unwrap();
 
     let dds = model_file::load(&model_path).unwrap();
-    let off = (&solved_off.solution.model, &solved_off.solution.covariance);
+    let off = (&solved_off.solution.model, solved_off.solution.uncertainty());
     let machine = Machine::load(&machine_path).unwrap();
     let plan: Plan = volcal_formats::plan::load_plan(Some(&plan_path)).unwrap();
     let truth = sim_config(&machine, plan, 1).machine.truth;
@@ -118,8 +118,8 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
     assert_eq!(campaign.readings.len(), 960);
     let offsets = probe_offsets(&campaign);
     assert_eq!(offsets.len(), 3);
-    for (name, m, c) in [("DDS chain", &dds.model, &dds.covariance), ("offline", off.0, off.1)] {
-        let cmp = compare_with_truth(m, c, &truth, machine.gauge, &offsets, 0.1);
+    for (name, m, c) in [("DDS chain", &dds.model, dds.uncertainty()), ("offline", off.0, off.1)] {
+        let cmp = compare_with_truth(m, &c, &truth, machine.gauge, &offsets, 0.1);
         eprintln!(
             "{name} vs truth: RMS {:.3} um, max {:.3} um, predicted sigma RMS {:.3} um",
             cmp.rms_m * 1e6,
@@ -133,7 +133,7 @@ fn dds_campaign_matches_offline_simulate_and_solve() {
             cmp.predicted_rms_m
         );
     }
-    let (d, s) = model_difference(&dds.model, &dds.covariance, off.0, off.1, &offsets, 0.1);
+    let (d, s) = model_difference(&dds.model, &dds.covariance, off.0, off.1.covariance, &offsets, 0.1);
     eprintln!("DDS chain vs offline: RMS difference {:.3} um, predicted {:.3} um", d * 1e6, s * 1e6);
     assert!(d < 2.0 * s, "models differ by {d} m RMS, more than twice the predicted {s} m");
     assert!(dds.file.identifiability.extra_null_dim == 0, "all 21 functions identified");

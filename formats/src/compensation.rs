@@ -17,11 +17,10 @@
 //! `offset = -e`, evaluated at the commanded position.
 
 use anyhow::{bail, Context, Result};
-use faer::Mat;
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use std::path::Path;
-use volcal::predict;
+use volcal::predict::{self, Uncertainty};
 use volcal::{Axis, ErrorModel, Travel};
 use volcal_sim::controller::{interpolate, JointCompensation, JointOffsets};
 
@@ -269,7 +268,7 @@ pub fn residual(
 /// The volumetric error and its U95 on a grid: `(x, e, u95)` per point, metres.
 pub fn grid(
     model: &ErrorModel,
-    cov: &Mat<f64>,
+    unc: &Uncertainty<'_>,
     step_m: f64,
     probe: &Vector3<f64>,
 ) -> Result<Vec<(Point3<f64>, Vector3<f64>, f64)>> {
@@ -278,13 +277,65 @@ pub fn grid(
     if pts.len() > 5_000_000 {
         bail!("--step-mm {} gives {} grid points; use a coarser step", step_m * 1e3, pts.len());
     }
-    Ok(pts
+    let out: Vec<_> = pts
         .into_iter()
         .map(|x| {
             let e = model.error(&x, probe);
-            (x, e, predict::predict(model, cov, &x, probe).u95())
+            (x, e, predict::predict(model, unc, &x, probe).u95())
         })
-        .collect())
+        .collect();
+    let undetermined = out.iter().filter(|(_, _, u)| !u.is_finite()).count();
+    if undetermined > 0 {
+        bail!(
+            "the data do not determine the volumetric error at {undetermined} of {} grid nodes, and a controller needs every node: {}",
+            out.len(),
+            crate::report::what_to_measure(model, unc, probe)
+        );
+    }
+    Ok(out)
+}
+
+/// Refuses a per-axis export where the data do not determine what its tables hold: the error
+/// along the three reference lines through `point` (LinuxCNC, SINUMERIK), or every function
+/// over its travel (`functions`, ISG).
+pub fn require_determined(
+    model: &ErrorModel,
+    unc: &Uncertainty<'_>,
+    point: &Point3<f64>,
+    probe: &Vector3<f64>,
+    functions: bool,
+) -> Result<()> {
+    if !unc.has_undetermined() {
+        return Ok(());
+    }
+    let travel = model.layout.travel;
+    let mut missing: Vec<String> = Vec::new();
+    for a in Axis::ALL {
+        let [lo, hi] = travel.range(a);
+        let qs: Vec<f64> = (0..=100).map(|i| lo + (hi - lo) * i as f64 / 100.0).collect();
+        if functions {
+            for m in 0..6 {
+                let f = volcal::ErrorFunction::from_index(a.index() * 6 + m);
+                if qs.iter().any(|&q| !predict::function_sigma(model, unc, f, q).is_finite()) {
+                    missing.push(f.name());
+                }
+            }
+        } else if qs.iter().any(|&q| {
+            let mut x = *point;
+            x[a.index()] = q;
+            !predict::predict(model, unc, &x, probe).is_determined()
+        }) {
+            missing.push(format!("the {} line", a.letter()));
+        }
+    }
+    if missing.is_empty() {
+        return Ok(());
+    }
+    bail!(
+        "the data do not determine {} of the model, which the tables need: {}",
+        missing.join(", "),
+        crate::report::what_to_measure(model, unc, probe)
+    )
 }
 
 #[cfg(test)]

@@ -57,11 +57,15 @@ pub fn diagnose_campaign(
     provenance: Provenance,
 ) -> Result<Diagnosed> {
     let prepared = prepare_campaign(campaign, machine, source)?;
+    // With `representation: auto` the knots and the smoothing are chosen once, on the plain
+    // fit, and held for every fit of the diagnosis: its candidates, folds and refits then differ
+    // only by what they add, and an effect cannot be absorbed into a re-estimated smoothness.
+    let setup = machine.setup_for(&prepared.obs).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     let opts = DiagnoseOptions::new(
-        machine.solve_options(),
+        setup.options,
         Optics { wavelength_vac_m: campaign.meta.wavelength_vac_m, air_equation: campaign.meta.air_equation },
     );
-    let d = diagnose(&machine.layout, &prepared.obs, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let d = diagnose(&setup.layout, &prepared.obs, &opts).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     let n = prepared.obs.len();
     let file = DiagnosisFile::new(&d, &prepared.obs, provenance);
     Ok(Diagnosed { file, report: text_report(&d, source, n), diagnosis: d, obs: prepared.obs })

@@ -6,8 +6,9 @@
 //! topology: FXYZ                      # axis stacking, workpiece to tool
 //! travel: {x: [0, 1.0], y: [0, 0.8], z: [-0.6, 0]}   # metres
 //! # optional, with these defaults:
-//! representation: {kind: bspline, intervals: 12}
-//! representations: {EXX: {kind: polynomial, degree: 6}}   # per-function overrides
+//! representation: auto                # from the data: knots the readings support, REML smoothing
+//!                                     # ({kind: auto, max_intervals: 16}), or e.g. {kind: bspline, intervals: 12}
+//! representations: {EXX: {kind: polynomial, degree: 6}}   # per-function overrides (not smoothed)
 //! gauge: patent                       # or datum
 //! noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_m: 1.0e-7, tracer_ppm: 0.2}
 //! expansion: {x: 11.5e-6, y: 11.5e-6, z: 11.5e-6}          # ISO 1 normalisation (1/K)
@@ -15,10 +16,13 @@
 //! ```
 
 use anyhow::{bail, Context, Result};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
 use std::path::Path;
-use volcal::campaign::ScaleExpansion;
+use volcal::campaign::{Observations, ScaleExpansion};
+use volcal::estimator::{Solution, SolveError};
+use volcal::flexibility::{solve_auto, Auto, AxisKnots};
+use volcal::smoothing::Smoothing;
 use volcal::{ErrorFunction, Gauge, ModelLayout, NoiseModel, Representation, SolveOptions, Topology, Travel};
 use volcal_sim::{Deflector, EnvironmentSim, Interferometer, Tracer, TruthSpec};
 
@@ -79,6 +83,76 @@ impl Default for SimulationSpec {
     }
 }
 
+/// The `representation` of a machine file: chosen from the data (`auto`, the default), or given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RepresentationSpec {
+    /// `auto` or `{kind: auto, max_intervals: N}`: per axis the cubic B-spline knots the
+    /// readings' positions support, each function smoothed with REML ([`volcal::flexibility`]).
+    Auto(Auto),
+    /// The same representation for every function, as written.
+    Given(Representation),
+}
+
+impl Default for RepresentationSpec {
+    fn default() -> Self {
+        RepresentationSpec::Auto(Auto::default())
+    }
+}
+
+impl Serialize for RepresentationSpec {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            RepresentationSpec::Auto(a) => {
+                #[derive(Serialize)]
+                struct AutoOut {
+                    kind: &'static str,
+                    start_intervals: usize,
+                    max_intervals: usize,
+                }
+                AutoOut { kind: "auto", start_intervals: a.start_intervals, max_intervals: a.max_intervals }
+                    .serialize(s)
+            }
+            RepresentationSpec::Given(r) => r.serialize(s),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for RepresentationSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error;
+        let v = serde_yaml::Value::deserialize(d)?;
+        if v.as_str() == Some("auto") {
+            return Ok(RepresentationSpec::Auto(Auto::default()));
+        }
+        if let Some(m) = v.as_mapping() {
+            if m.get("kind").and_then(|k| k.as_str()) == Some("auto") {
+                let mut auto = Auto::default();
+                let count = |key: &str, val: &serde_yaml::Value| -> std::result::Result<usize, D::Error> {
+                    val.as_u64()
+                        .filter(|&n| (1..=200).contains(&n))
+                        .map(|n| n as usize)
+                        .ok_or_else(|| D::Error::custom(format!("{key} must be a whole number from 1 to 200")))
+                };
+                for (k, val) in m {
+                    match k.as_str() {
+                        Some("kind") => {}
+                        Some("max_intervals") => auto.max_intervals = count("max_intervals", val)?,
+                        Some("start_intervals") => auto.start_intervals = count("start_intervals", val)?,
+                        _ => {
+                            return Err(D::Error::custom(format!(
+                                "unknown key {k:?} for kind auto (expected start_intervals, max_intervals)"
+                            )))
+                        }
+                    }
+                }
+                auto.start_intervals = auto.start_intervals.min(auto.max_intervals);
+                return Ok(RepresentationSpec::Auto(auto));
+            }
+        }
+        serde_yaml::from_value::<Representation>(v).map(RepresentationSpec::Given).map_err(D::Error::custom)
+    }
+}
+
 /// A machine file.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -88,7 +162,7 @@ pub struct MachineFile {
     pub topology: String,
     pub travel: TravelSpec,
     #[serde(default)]
-    pub representation: Option<Representation>,
+    pub representation: Option<RepresentationSpec>,
     #[serde(default)]
     pub representations: BTreeMap<String, Representation>,
     #[serde(default)]
@@ -105,7 +179,14 @@ pub struct MachineFile {
 #[derive(Clone, Debug)]
 pub struct Machine {
     pub file: MachineFile,
+    /// The error-model layout: the one the file gives, or with `representation: auto` the
+    /// largest that auto may choose (what [`Machine::setup_for`] fits is then the one the
+    /// readings support).
     pub layout: ModelLayout,
+    /// `Some` with `representation: auto`.
+    pub auto: Option<Auto>,
+    /// Functions with a representation of their own (`representations:`).
+    pub overrides: [Option<Representation>; 18],
     pub gauge: Gauge,
     pub noise: NoiseModel,
     pub expansion: ScaleExpansion,
@@ -145,9 +226,14 @@ impl Machine {
                 );
             }
         }
-        let base = file.representation.unwrap_or_default();
+        let spec = file.representation.unwrap_or_default();
+        let (auto, base) = match spec {
+            RepresentationSpec::Auto(a) => (Some(a), Representation::BSpline { intervals: a.max_intervals }),
+            RepresentationSpec::Given(r) => (None, r),
+        };
         base.validate().map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
         let mut reprs = [base; 18];
+        let mut overrides = [None; 18];
         for (name, r) in &file.representations {
             let f = ErrorFunction::parse(name).ok_or_else(|| {
                 anyhow::anyhow!(
@@ -156,6 +242,7 @@ impl Machine {
             })?;
             r.validate().map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
             reprs[f.index()] = *r;
+            overrides[f.index()] = Some(*r);
         }
         let gauge = match &file.gauge {
             None => Gauge::Patent,
@@ -186,19 +273,46 @@ impl Machine {
             check_truth_preset(p, &topology, &travel)?;
         }
         let layout = ModelLayout::new(topology, travel, reprs);
-        Ok(Machine { file, layout, gauge, noise, expansion })
+        Ok(Machine { file, layout, auto, overrides, gauge, noise, expansion })
     }
 
-    /// Solver options implied by the machine file.
+    /// Solver options implied by the machine file, for its own layout (without smoothing: use
+    /// [`Machine::setup_for`] to fit a campaign).
     pub fn solve_options(&self) -> SolveOptions {
         SolveOptions { gauge: self.gauge, noise: self.noise, ..SolveOptions::default() }
     }
 
-    /// Layout used for the simulated truth.
+    /// The layout and solver options to fit `obs` with: the file's representation, or with
+    /// `representation: auto` what [`solve_auto`] chose for these readings (knots per axis,
+    /// smoothing held at the REML estimate), with that solution.
+    pub fn setup_for(&self, obs: &Observations) -> std::result::Result<Setup, SolveError> {
+        let Some(auto) = &self.auto else {
+            return Ok(Setup {
+                layout: self.layout.clone(),
+                options: self.solve_options(),
+                knots: None,
+                solution: None,
+            });
+        };
+        let s =
+            solve_auto(&self.layout.topology, self.layout.travel, obs, &self.solve_options(), auto, &self.overrides)?;
+        let options = SolveOptions {
+            smoothing: s.solution.smoothing.as_ref().map(Smoothing::fixed_from),
+            ..self.solve_options()
+        };
+        Ok(Setup { layout: s.solution.model.layout.clone(), options, knots: Some(s.knots), solution: Some(s.solution) })
+    }
+
+    /// Layout used for the simulated truth: `simulation.truth_representation`, else the file's
+    /// representation (a cubic B-spline of 12 intervals with `auto`).
     pub fn truth_layout(&self) -> ModelLayout {
-        match self.file.simulation.truth_representation {
-            Some(r) => ModelLayout::uniform(self.layout.topology.clone(), self.layout.travel, r),
-            None => self.layout.clone(),
+        match (self.file.simulation.truth_representation, &self.auto) {
+            (Some(r), _) => ModelLayout::uniform(self.layout.topology.clone(), self.layout.travel, r),
+            (None, Some(_)) => {
+                let reprs: [Representation; 18] = std::array::from_fn(|i| self.overrides[i].unwrap_or_default());
+                ModelLayout::new(self.layout.topology.clone(), self.layout.travel, reprs)
+            }
+            (None, None) => self.layout.clone(),
         }
     }
 
@@ -206,6 +320,17 @@ impl Machine {
     pub fn name(&self) -> String {
         self.file.name.clone().unwrap_or_else(|| format!("{} machine", self.layout.topology))
     }
+}
+
+/// What a campaign is fitted with ([`Machine::setup_for`]).
+#[derive(Clone, Debug)]
+pub struct Setup {
+    pub layout: ModelLayout,
+    pub options: SolveOptions,
+    /// With `representation: auto`: the knots chosen per axis and why.
+    pub knots: Option<[AxisKnots; 3]>,
+    /// With `representation: auto`: the solution it was chosen with.
+    pub solution: Option<Solution>,
 }
 
 /// Name of the truth preset of the paper's Table 2.
@@ -258,6 +383,16 @@ mod tests {
     fn minimal_file_and_errors() {
         let m = Machine::parse("topology: FYXZ\ntravel: {x: [0, 0.7], y: [-0.5, 0], z: [-0.7, 0]}\n").unwrap();
         assert_eq!(m.gauge, Gauge::Patent);
+        assert_eq!(m.auto, Some(Auto::default()), "auto is the default representation");
+        let head = "topology: FXYZ\ntravel: {x: [0, 1], y: [0, 1], z: [0, 1]}\n";
+        let m = Machine::parse(&format!("{head}representation: {{kind: auto, max_intervals: 9}}\n")).unwrap();
+        assert_eq!(m.auto, Some(Auto { start_intervals: 9, max_intervals: 9 }));
+        let m = Machine::parse(&format!("{head}representation: {{kind: bspline, intervals: 12}}\n")).unwrap();
+        assert_eq!(m.auto, None);
+        let e = Machine::parse(&format!("{head}representation: {{kind: auto, knots: 9}}\n")).unwrap_err();
+        assert!(format!("{e:#}").contains("knots"), "{e:#}");
+        let e = Machine::parse(&format!("{head}representation: automatic\n")).unwrap_err();
+        assert!(format!("{e:#}").contains("representation"), "{e:#}");
         let e = Machine::parse("topology: FXQZ\ntravel: {x: [0, 1], y: [0, 1], z: [0, 1]}\n").unwrap_err();
         assert!(format!("{e:#}").contains("topology"), "{e:#}");
         let e = Machine::parse("topology: FXYZ\ntravel: {x: [0, 1000], y: [0, 800], z: [0, 600]}\n").unwrap_err();

@@ -9,7 +9,10 @@ use faer::Mat;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use volcal::estimator::Solution;
-use volcal::{ErrorFunction, ErrorModel, Gauge, ModelLayout, Representation, Squareness, Topology, Travel};
+use volcal::flexibility::{AxisKnots, KnotBound};
+use volcal::predict::{AxisResolution, Uncertainty, RESOLVED_EVERYWHERE};
+use volcal::smoothing::SmoothingReport;
+use volcal::{Axis, ErrorFunction, ErrorModel, Gauge, ModelLayout, Representation, Squareness, Topology, Travel};
 
 pub const FORMAT: &str = "volcal-model/1";
 
@@ -62,6 +65,145 @@ pub struct IdentifiabilityEntry {
     pub not_observed: Vec<String>,
     pub combinations: Vec<Vec<String>>,
     pub statements: Vec<String>,
+}
+
+/// How the representation was chosen with `representation: auto`: the knots per axis, the
+/// smoothing of each function, in numbers and in words.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Default)]
+pub struct RepresentationChoice {
+    pub knots: Vec<KnotsEntry>,
+    pub smoothing: Vec<SmoothingEntry>,
+    /// `reml` (estimated) or `fixed`.
+    pub method: String,
+    pub reml_iterations: usize,
+    pub reml_converged: bool,
+    /// Effective number of parameters of the whole model.
+    pub edf_total: f64,
+    pub statements: Vec<String>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct KnotsEntry {
+    pub axis: String,
+    /// Distinct positions of the readings along the axis.
+    pub positions: usize,
+    pub intervals: usize,
+    /// `limit` (the most allowed), `positions` (the most the positions determine: interpolated
+    /// between them) or `data` (finer knots would not explain the readings better).
+    pub bound: String,
+    /// The refinement tests (doubling the knots, score test against the smoothed fit).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tests: Vec<RefinementEntry>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RefinementEntry {
+    pub from: usize,
+    pub to: usize,
+    pub delta_chi2: f64,
+    pub dof: usize,
+    pub p_value: f64,
+    pub refined: bool,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SmoothingEntry {
+    pub name: String,
+    /// One smoothing parameter per piece of the travel.
+    pub lambda: Vec<f64>,
+    /// Effective number of parameters (of `n_coeffs`).
+    pub edf: f64,
+    pub n_coeffs: usize,
+    /// The data show no detail beyond a parabola (the smoothing at its limit).
+    pub smoothest: bool,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shared_with: Vec<String>,
+}
+
+impl RepresentationChoice {
+    /// The choice of a solve: its knots (from [`volcal::flexibility::auto_layout`]) and its
+    /// smoothing report.
+    pub fn new(knots: &[AxisKnots; 3], smoothing: Option<&SmoothingReport>) -> RepresentationChoice {
+        let mut statements: Vec<String> = knots.iter().map(|k| k.describe()).collect();
+        let mut entries = Vec::new();
+        let (mut method, mut iterations, mut converged, mut edf_total) = (String::from("none"), 0, true, 0.0);
+        if let Some(r) = smoothing {
+            method = r.method.clone();
+            iterations = r.iterations;
+            converged = r.converged;
+            edf_total = r.edf_total;
+            let smoothest: Vec<String> =
+                r.functions.iter().filter(|f| f.smoothest).map(|f| f.function.name()).collect();
+            let curved: Vec<String> = r
+                .functions
+                .iter()
+                .filter(|f| !f.smoothest)
+                .map(|f| format!("{} {:.1}/{}", f.function.name(), f.edf, f.n_coeffs))
+                .collect();
+            statements.push(format!(
+                "Smoothing by {} ({} iterations{}): effective parameters per function {}.",
+                if r.method == "reml" { "restricted maximum likelihood" } else { "fixed parameters" },
+                r.iterations,
+                if r.converged { "" } else { ", not converged" },
+                if curved.is_empty() { "none curved".to_string() } else { curved.join(", ") }
+            ));
+            if !smoothest.is_empty() {
+                statements.push(format!("The readings show no detail beyond a parabola in {}.", smoothest.join(", ")));
+            }
+            for f in r.functions.iter().filter(|f| !f.shared_with.is_empty()) {
+                statements.push(format!(
+                    "{} shares its smoothing with {} (determined only in combination).",
+                    f.function.name(),
+                    f.shared_with.join(", ")
+                ));
+            }
+            entries = r
+                .functions
+                .iter()
+                .map(|f| SmoothingEntry {
+                    name: f.function.name(),
+                    lambda: f.lambda.clone(),
+                    edf: f.edf,
+                    n_coeffs: f.n_coeffs,
+                    smoothest: f.smoothest,
+                    shared_with: f.shared_with.clone(),
+                })
+                .collect();
+        }
+        RepresentationChoice {
+            knots: knots
+                .iter()
+                .map(|k| KnotsEntry {
+                    axis: k.axis.letter().to_string(),
+                    positions: k.positions,
+                    intervals: k.intervals,
+                    bound: match k.bound {
+                        KnotBound::Limit => "limit".into(),
+                        KnotBound::Positions => "positions".into(),
+                        KnotBound::Data => "data".into(),
+                    },
+                    tests: k
+                        .tests
+                        .iter()
+                        .map(|t| RefinementEntry {
+                            from: t.from,
+                            to: t.to,
+                            delta_chi2: t.delta_chi2,
+                            dof: t.dof,
+                            p_value: t.p_value,
+                            refined: t.refined,
+                        })
+                        .collect(),
+                })
+                .collect(),
+            smoothing: entries,
+            method,
+            reml_iterations: iterations,
+            reml_converged: converged,
+            edf_total,
+            statements,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Default)]
@@ -128,14 +270,42 @@ pub struct ModelFile {
     pub identifiability: IdentifiabilityEntry,
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// With `representation: auto`: how the representation was chosen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub representation_choice: Option<RepresentationChoice>,
+    /// Directions of the coefficients the data leave undetermined beyond the gauge (each an
+    /// array of `n_params` values; orthonormal). A prediction that depends on them is not
+    /// determined by the data ([`volcal::predict::Uncertainty`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub undetermined: Vec<Vec<f64>>,
+    /// Axes the readings resolve only at their measured positions (between them the functions
+    /// are interpolated): the positions, metres.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub measured_positions: Vec<MeasuredPositions>,
     pub provenance: Provenance,
 }
 
-/// A model read back: the error model and its covariance.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct MeasuredPositions {
+    pub axis: String,
+    pub positions_m: Vec<f64>,
+}
+
+/// A model read back: the error model, its covariance and what the data left undetermined.
 pub struct LoadedModel {
     pub file: ModelFile,
     pub model: ErrorModel,
     pub covariance: Mat<f64>,
+    /// `n_params x m`, orthonormal columns.
+    pub undetermined: Mat<f64>,
+    pub resolution: [AxisResolution; 3],
+}
+
+impl LoadedModel {
+    /// What predictions from this model may say.
+    pub fn uncertainty(&self) -> Uncertainty<'_> {
+        Uncertainty::new(&self.covariance, &self.undetermined).with_resolution(&self.resolution)
+    }
 }
 
 impl ModelFile {
@@ -191,8 +361,49 @@ impl ModelFile {
                 statements: id.statements.clone(),
             },
             warnings: sol.warnings.clone(),
+            undetermined: (0..sol.undetermined.ncols())
+                .map(|j| (0..sol.undetermined.nrows()).map(|i| sol.undetermined[(i, j)]).collect())
+                .collect(),
+            measured_positions: Axis::ALL
+                .iter()
+                .filter_map(|&a| match &sol.resolution[a.index()] {
+                    AxisResolution::AtPositions { positions, .. } => {
+                        Some(MeasuredPositions { axis: a.letter().to_string(), positions_m: positions.clone() })
+                    }
+                    AxisResolution::Everywhere => None,
+                })
+                .collect(),
             ..ModelFile::from_model(m, &sol.covariance, sol.gauge, provenance)
         }
+    }
+
+    /// Where the readings resolve each axis, checked.
+    pub fn resolution(&self) -> Result<[AxisResolution; 3]> {
+        let mut out = RESOLVED_EVERYWHERE;
+        for (j, m) in self.measured_positions.iter().enumerate() {
+            let a = Axis::ALL
+                .iter()
+                .find(|a| a.letter().to_string() == m.axis)
+                .ok_or_else(|| anyhow::anyhow!("field measured_positions[{j}]: unknown axis {:?}", m.axis))?;
+            if m.positions_m.windows(2).any(|w| !(w[0] < w[1])) || m.positions_m.iter().any(|v| !v.is_finite()) {
+                bail!("field measured_positions[{j}]: positions must be finite and increasing");
+            }
+            out[a.index()] = AxisResolution::at(m.positions_m.clone());
+        }
+        Ok(out)
+    }
+
+    /// The undetermined directions as a matrix (`n_params x m`), checked.
+    pub fn undetermined_matrix(&self, n_params: usize) -> Result<Mat<f64>> {
+        for (j, v) in self.undetermined.iter().enumerate() {
+            if v.len() != n_params {
+                bail!("field undetermined[{j}]: {} values for {n_params} parameters", v.len());
+            }
+            if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                bail!("field undetermined[{j}]: value {k} is not finite");
+            }
+        }
+        Ok(Mat::from_fn(n_params, self.undetermined.len(), |i, j| self.undetermined[j][i]))
     }
 
     /// A model file with coefficients and covariance only (e.g. simulated truth).
@@ -216,6 +427,9 @@ impl ModelFile {
             stations: Vec::new(),
             identifiability: IdentifiabilityEntry::default(),
             warnings: Vec::new(),
+            representation_choice: None,
+            undetermined: Vec::new(),
+            measured_positions: Vec::new(),
             provenance,
         }
     }
@@ -280,7 +494,10 @@ pub fn load(path: &Path) -> Result<LoadedModel> {
     let file: ModelFile = serde_json::from_str(&text)
         .map_err(|e| anyhow::anyhow!("{} line {}, column {}: {e}", path.display(), e.line(), e.column()))?;
     let (model, covariance) = file.to_model().with_context(|| format!("model {}", path.display()))?;
-    Ok(LoadedModel { file, model, covariance })
+    let undetermined =
+        file.undetermined_matrix(model.layout.n_params).with_context(|| format!("model {}", path.display()))?;
+    let resolution = file.resolution().with_context(|| format!("model {}", path.display()))?;
+    Ok(LoadedModel { file, model, covariance, undetermined, resolution })
 }
 
 /// SHA-256 of a file's bytes, hex.

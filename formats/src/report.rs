@@ -1,10 +1,9 @@
 //! Human-readable summaries: the error functions' ranges in the manner of the paper's Table 2,
 //! the largest volumetric error and where it occurs, residuals and identifiability.
 
-use faer::Mat;
 use nalgebra::Vector3;
 use std::fmt::Write;
-use volcal::predict::{self, function_range, function_sigma, Extremum};
+use volcal::predict::{self, function_range, function_sigma, Extremum, Uncertainty};
 use volcal::{Axis, ErrorFunction, ErrorModel, Motion, Squareness};
 
 /// Scale and unit of a function's values for display.
@@ -16,8 +15,9 @@ pub fn display_unit(f: ErrorFunction) -> (f64, &'static str) {
 }
 
 /// The Table-2 style block: for each axis its six functions' signed ranges with the largest
-/// expanded uncertainty (k = 2) of the function over the travel, and the squareness errors.
-pub fn functions_table(model: &ErrorModel, cov: &Mat<f64>) -> String {
+/// expanded uncertainty (k = 2) of the function over the travel, and the squareness errors. A
+/// function (or squareness) the data do not determine is marked so instead of a number.
+pub fn functions_table(model: &ErrorModel, unc: &Uncertainty<'_>) -> String {
     let mut cells: Vec<Vec<String>> = Vec::new();
     for a in Axis::ALL {
         let mut col = vec![format!("{} axis", a.letter())];
@@ -28,19 +28,28 @@ pub fn functions_table(model: &ErrorModel, cov: &Mat<f64>) -> String {
             let u = (0..=50)
                 .map(|i| {
                     let [lo, hi] = model.layout.travel.range(a);
-                    function_sigma(model, cov, f, lo + (hi - lo) * i as f64 / 50.0)
+                    function_sigma(model, unc, f, lo + (hi - lo) * i as f64 / 50.0)
                 })
                 .fold(0.0, f64::max);
-            col.push(format!("{:<4}{:>9.2} {:<4} (U {:.2})", f.name(), r.signed_range * k, unit, 2.0 * u * k));
+            col.push(if u.is_finite() {
+                format!("{:<4}{:>9.2} {:<4} (U {:.2})", f.name(), r.signed_range * k, unit, 2.0 * u * k)
+            } else {
+                format!("{:<4}   not determined", f.name())
+            });
         }
         cells.push(col);
     }
     let mut col = vec!["squareness".to_string()];
     let n = model.layout.n_params;
+    let cov = unc.covariance;
     for s in Squareness::ALL {
         let i = model.layout.squareness_index(s);
         let sig = if cov.nrows() == n { cov[(i, i)].max(0.0).sqrt() } else { 0.0 };
-        col.push(format!("{:<5}{:>9.2} urad (U {:.2})", s.name(), model.squareness(s) * 1e6, 2.0 * sig * 1e6));
+        if unc.share(std::iter::once([(i, 1.0)].as_slice())) > predict::NOT_DETERMINED_ABOVE {
+            col.push(format!("{:<5}   not determined", s.name()));
+        } else {
+            col.push(format!("{:<5}{:>9.2} urad (U {:.2})", s.name(), model.squareness(s) * 1e6, 2.0 * sig * 1e6));
+        }
     }
     cells.push(col);
     let widths: Vec<usize> = cells.iter().map(|c| c.iter().map(|s| s.len()).max().unwrap_or(0)).collect();
@@ -54,31 +63,82 @@ pub fn functions_table(model: &ErrorModel, cov: &Mat<f64>) -> String {
         out.push_str(line.trim_end());
         out.push('\n');
     }
-    out.push_str("Ranges are max - min over the travel, signed by the larger excursion from the axis origin; U = largest expanded uncertainty (k = 2) of the function.\n");
+    out.push_str("Ranges are max - min over the travel, signed by the larger excursion from the axis origin; U = largest expanded uncertainty (k = 2) of the function; not determined: the readings do not determine it (see the identifiability statements).\n");
     out
 }
 
-/// The largest volumetric error over the travel for each probe offset, as text.
-pub fn max_error_lines(model: &ErrorModel, cov: &Mat<f64>, offsets: &[Vector3<f64>]) -> (String, Vec<Extremum>) {
+/// The largest volumetric error over the travel for each probe offset, as text: among the
+/// points where the data determine it, with how much of the volume that is.
+pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vector3<f64>]) -> (String, Vec<Extremum>) {
     let step = volcal::Axis::ALL.iter().map(|&a| model.layout.travel.length(a)).fold(0.0, f64::max) / 20.0;
     let mut out = String::new();
     let mut ext = Vec::new();
     for p in offsets {
-        let e = predict::max_error(model, cov, p, step);
+        let e = predict::max_error(model, unc, p, step);
         let x = e.at.x;
-        let _ = writeln!(
-            out,
-            "Max volumetric error {:.2} um (U95 {:.2} um) at ({:.3}, {:.3}, {:.3}) m, probe offset ({:.3}, {:.3}, {:.3}) m",
-            e.magnitude_m * 1e6,
-            e.at.u95() * 1e6,
-            x.x,
-            x.y,
-            x.z,
-            p.x,
-            p.y,
-            p.z
-        );
+        if e.undetermined_points == e.grid_points {
+            let _ = writeln!(
+                out,
+                "Volumetric error not determined by the data anywhere for probe offset ({:.3}, {:.3}, {:.3}) m: {}",
+                p.x,
+                p.y,
+                p.z,
+                what_to_measure(model, unc, p)
+            );
+        } else {
+            let _ = writeln!(
+                out,
+                "Max volumetric error {:.2} um (U95 {:.2} um) at ({:.3}, {:.3}, {:.3}) m, probe offset ({:.3}, {:.3}, {:.3}) m",
+                e.magnitude_m * 1e6,
+                e.at.u95() * 1e6,
+                x.x,
+                x.y,
+                x.z,
+                p.x,
+                p.y,
+                p.z
+            );
+            if e.undetermined_points > 0 {
+                let _ = writeln!(
+                    out,
+                    "  (the data determine the error at {} of {} grid points for this offset; elsewhere it is not determined: {})",
+                    e.grid_points - e.undetermined_points,
+                    e.grid_points,
+                    what_to_measure(model, unc, p)
+                );
+            }
+        }
         ext.push(e);
     }
     (out, ext)
+}
+
+/// What to measure so that the data determine the volumetric error at probe offset `p`: the
+/// functions the undetermined directions involve there, and where along their axes.
+pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>) -> String {
+    let _ = p;
+    let mut involved: Vec<String> = Vec::new();
+    for f in ErrorFunction::all() {
+        let r = model.layout.range(f);
+        let w: f64 = (0..unc.undetermined.ncols())
+            .map(|j| r.clone().map(|i| unc.undetermined[(i, j)].powi(2)).sum::<f64>())
+            .sum();
+        if w > 1e-3 {
+            involved.push(f.name());
+        }
+    }
+    for s in Squareness::ALL {
+        let i = model.layout.squareness_index(s);
+        let w: f64 = (0..unc.undetermined.ncols()).map(|j| unc.undetermined[(i, j)].powi(2)).sum();
+        if w > 1e-3 {
+            involved.push(s.name().to_string());
+        }
+    }
+    if involved.is_empty() {
+        return "measure along more lines".into();
+    }
+    format!(
+        "the readings leave {} undetermined; measure with other probe offsets or along lines that move those axes where they are missing",
+        involved.join(", ")
+    )
 }

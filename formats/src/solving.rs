@@ -3,14 +3,14 @@
 //! printed summary, the comparison with a simulation truth.
 
 use crate::machine::Machine;
-use crate::model_file::{ModelFile, Provenance};
+use crate::model_file::{ModelFile, Provenance, RepresentationChoice};
 use crate::report;
 use anyhow::Result;
 use nalgebra::Vector3;
 use volcal::campaign::{prepare, Campaign, Prepared};
 use volcal::estimator::Solution;
-use volcal::predict;
-use volcal::{gauge, solve, ErrorFunction, ErrorModel};
+use volcal::predict::{self, Uncertainty};
+use volcal::{gauge, solve, ErrorModel};
 
 /// A solved campaign.
 pub struct Solved {
@@ -24,9 +24,16 @@ pub struct Solved {
 /// `source`.
 pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, provenance: Provenance) -> Result<Solved> {
     let prepared = prepare_campaign(campaign, &machine, source)?;
-    let solution = solve(&machine.layout, &prepared.obs, &machine.solve_options(), &[])
-        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-    let file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
+    let setup = machine.setup_for(&prepared.obs).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let solution = match setup.solution {
+        Some(s) => s,
+        None => {
+            solve(&setup.layout, &prepared.obs, &setup.options, &[]).map_err(|e| anyhow::anyhow!("{source}: {e}"))?
+        }
+    };
+    let mut file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
+    file.representation_choice =
+        setup.knots.as_ref().map(|k| RepresentationChoice::new(k, solution.smoothing.as_ref()));
     Ok(Solved { machine, prepared, solution, file })
 }
 
@@ -53,7 +60,7 @@ pub fn probe_offsets(c: &Campaign) -> Vec<Vector3<f64>> {
 }
 
 /// The summary printed by `volcal solve` and `volcal report`.
-pub fn summary(model: &ErrorModel, cov: &faer::Mat<f64>, file: &ModelFile, offsets: &[Vector3<f64>]) -> String {
+pub fn summary(model: &ErrorModel, unc: &Uncertainty<'_>, file: &ModelFile, offsets: &[Vector3<f64>]) -> String {
     let mut out = String::new();
     out.push_str(&format!(
         "Machine {}, travel X [{}, {}] Y [{}, {}] Z [{}, {}] m, gauge {}\n",
@@ -66,11 +73,18 @@ pub fn summary(model: &ErrorModel, cov: &faer::Mat<f64>, file: &ModelFile, offse
         file.travel[2][1],
         file.gauge.name()
     ));
-    out.push_str(&format!("Representation: {}\n\n", model.layout.describe()));
-    out.push_str(&report::functions_table(model, cov));
+    out.push_str(&format!("Representation: {}\n", model.layout.describe()));
+    if let Some(c) = &file.representation_choice {
+        out.push_str("Chosen from the data (representation: auto):\n");
+        for s in &c.statements {
+            out.push_str(&format!("  {s}\n"));
+        }
+    }
+    out.push('\n');
+    out.push_str(&report::functions_table(model, unc));
     out.push('\n');
     let offsets = if offsets.is_empty() { vec![Vector3::zeros()] } else { offsets.to_vec() };
-    out.push_str(&report::max_error_lines(model, cov, &offsets).0);
+    out.push_str(&report::max_error_lines(model, unc, &offsets).0);
     if let Some(r) = &file.residuals {
         let worst = r.lines.iter().max_by(|a, b| a.rms_m.total_cmp(&b.rms_m));
         out.push_str(&format!(
@@ -120,36 +134,43 @@ pub struct TruthComparison {
     pub max_m: f64,
     /// RMS of the predicted standard uncertainty (sqrt of the mean trace of the covariance).
     pub predicted_rms_m: f64,
+    /// Grid points (x offsets) where the estimate is not determined, left out of the figures.
+    pub undetermined_points: usize,
 }
 
 /// Compares an estimate with truth over a grid and the given probe offsets, after moving the
-/// truth along the gauge freedoms onto the estimate's gauge. The truth is first projected onto
-/// the estimate's representation when they differ.
+/// truth along the gauge freedoms onto the estimate's gauge (the gauge's functionals evaluated on
+/// the truth's own functions, so that whatever the estimate's representation misses counts as
+/// error). Points where the estimate is not determined by the data are left out and counted.
 pub fn compare_with_truth(
     est: &ErrorModel,
-    cov: &faer::Mat<f64>,
+    unc: &Uncertainty<'_>,
     truth: &ErrorModel,
     g: volcal::Gauge,
     offsets: &[Vector3<f64>],
     step: f64,
 ) -> TruthComparison {
-    let mut projected = ErrorModel::zero(est.layout.clone());
-    for f in ErrorFunction::all() {
-        projected.set_function(f, |q| truth.function_value(f, q));
-    }
-    for s in volcal::Squareness::ALL {
-        projected.set_squareness(s, truth.squareness(s));
-    }
-    let aligned = ErrorModel { layout: est.layout.clone(), u: gauge::align(&est.layout, g, &projected.u) };
-    let (mut s2, mut m, mut v2, mut n) = (0.0, 0.0f64, 0.0, 0usize);
+    let aligned = ErrorModel { layout: truth.layout.clone(), u: gauge::align(&truth.layout, g, &truth.u) };
+    let (mut s2, mut m, mut v2, mut n, mut undetermined) = (0.0, 0.0f64, 0.0, 0usize, 0usize);
     for x in predict::grid(&est.layout.travel, step) {
         for p in offsets {
+            let pe = predict::predict(est, unc, &x, p);
+            if !pe.is_determined() {
+                undetermined += 1;
+                continue;
+            }
             let d = (est.error(&x, p) - aligned.error(&x, p)).norm();
             s2 += d * d;
             m = m.max(d);
-            v2 += predict::predict(est, cov, &x, p).cov.trace();
+            v2 += pe.cov.trace();
             n += 1;
         }
     }
-    TruthComparison { rms_m: (s2 / n as f64).sqrt(), max_m: m, predicted_rms_m: (v2 / n as f64).sqrt() }
+    let k = n.max(1) as f64;
+    TruthComparison {
+        rms_m: (s2 / k).sqrt(),
+        max_m: m,
+        predicted_rms_m: (v2 / k).sqrt(),
+        undetermined_points: undetermined,
+    }
 }

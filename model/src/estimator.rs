@@ -26,6 +26,7 @@ use crate::model::{ErrorModel, ModelLayout};
 use crate::normal;
 use crate::nullspace::NullSpace;
 use crate::range::multilaterate;
+use crate::smoothing::{self, Penalty, Quadratic, ReducedPenalty, Smoothing, SmoothingReport};
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Accum, Mat, Par, Side};
@@ -94,6 +95,9 @@ pub struct SolveOptions {
     /// Starting model coefficients `u` (e.g. a fit of the same machine on more data); zero
     /// errors when `None` or of the wrong length.
     pub initial_model: Option<Vec<f64>>,
+    /// Roughness penalties on the error functions, their strength estimated by REML or fixed
+    /// ([`crate::smoothing`]; `representation: auto` sets this); none when `None`.
+    pub smoothing: Option<Smoothing>,
 }
 
 impl Default for SolveOptions {
@@ -108,6 +112,7 @@ impl Default for SolveOptions {
             initial_stations: Vec::new(),
             group_mask: None,
             initial_model: None,
+            smoothing: None,
         }
     }
 }
@@ -189,10 +194,29 @@ pub struct Solution {
     pub sigmas: Vec<f64>,
     pub stats: ResidualStats,
     pub identifiability: Identifiability,
+    /// Directions of the model coefficients `u` that the data leave undetermined beyond the
+    /// gauge (orthonormal columns, `n_params x m`; `m = 0` when everything is determined). The
+    /// estimate sets them to zero and the covariance has no variance along them, so a quantity
+    /// that depends on them is not determined by the data: [`crate::predict`] reports it as such
+    /// instead of a number.
+    pub undetermined: Mat<f64>,
+    /// What the smoothing did (with [`SolveOptions::smoothing`]).
+    pub smoothing: Option<SmoothingReport>,
+    /// Where along each axis the readings resolve the functions (set by
+    /// [`crate::flexibility::solve_auto`]; everywhere otherwise).
+    pub resolution: [crate::predict::AxisResolution; 3],
     pub iterations: usize,
     pub converged: bool,
     pub gauge: Gauge,
     pub warnings: Vec<String>,
+}
+
+impl Solution {
+    /// What predictions from this solution may say: the covariance and the undetermined
+    /// directions ([`crate::predict::Uncertainty`]).
+    pub fn uncertainty(&self) -> crate::predict::Uncertainty<'_> {
+        crate::predict::Uncertainty::new(&self.covariance, &self.undetermined).with_resolution(&self.resolution)
+    }
 }
 
 /// Why a solve could not produce a result.
@@ -211,6 +235,8 @@ struct Dims {
     n_u: usize,
     stations: Vec<u32>,
     n_e: usize,
+    /// Parameters of each effect (`param_names().len()`, asked once: it formats names).
+    effect_sizes: Vec<usize>,
 }
 
 impl Dims {
@@ -242,7 +268,10 @@ struct Normal {
     /// n x n, full symmetric; empty for a gradient-only evaluation.
     n: Mat<f64>,
     b: Vec<f64>,
+    /// Objective: the weighted chi-square plus the roughness penalty.
     cost: f64,
+    /// The weighted chi-square of the readings alone.
+    chi2: f64,
     /// Centred residual of every reading and the origin of every group, at this state.
     res: Residuals,
 }
@@ -266,6 +295,8 @@ struct Problem<'a> {
     ref_energy: Vec<f64>,
     /// Groups taking part in the fit ([`SolveOptions::group_mask`]).
     active: Vec<bool>,
+    /// Roughness penalty on the model coefficients (smoothing), with its current parameters.
+    penalty: Option<Penalty>,
 }
 
 /// Per reading and axis: first coefficient and basis values.
@@ -439,20 +470,25 @@ impl<'a> Fit<'a> {
         let rows = self.rows.get_or_init(|| ModelRows::new(p, s));
         let n = p.dims.n();
         let k = effect.param_names().len();
-        let mut b = Mat::<f64>::zeros(n, k);
-        let mut g2 = Mat::<f64>::zeros(k, k);
+        // Row-major n x k and k x k accumulators as plain slices: the inner loops run over every
+        // reading's model row and, within it, the extension's non-zero regressors.
+        let mut b = vec![0.0; n * k];
+        let mut g2 = vec![0.0; k * k];
         let mut c = vec![0.0; k];
         let mut reg = vec![0.0; k];
         let mut nz: Vec<usize> = Vec::new();
+        let mut wreg: Vec<f64> = Vec::new();
         let mut sa = vec![0.0; n];
+        let mut sg = vec![0.0; k];
         let mut touched: Vec<usize> = Vec::new();
         let mut is_touched = vec![false; n];
+        let mut sgn: Vec<usize> = Vec::new();
+        let mut is_sgn = vec![false; k];
         for (gi, g) in p.obs.groups.iter().enumerate() {
             if mask.is_some_and(|m| !m[gi]) {
                 continue;
             }
             let mut wsum = 0.0;
-            let mut sg = vec![0.0; k];
             for i in g.range() {
                 let w = 1.0 / (p.sigma[i] * p.sigma[i]);
                 wsum += w;
@@ -472,36 +508,54 @@ impl<'a> Fit<'a> {
                 if nz.is_empty() {
                     continue;
                 }
+                wreg.clear();
+                wreg.extend(nz.iter().map(|&j| w * reg[j]));
                 let r = self.solution.residuals[i];
-                for &j in &nz {
-                    sg[j] += w * reg[j];
-                    c[j] += w * reg[j] * r;
+                for (&j, &wr) in nz.iter().zip(&wreg) {
+                    if !is_sgn[j] {
+                        is_sgn[j] = true;
+                        sgn.push(j);
+                    }
+                    sg[j] += wr;
+                    c[j] += wr * r;
+                    let gj = &mut g2[j * k..(j + 1) * k];
                     for &l in &nz {
-                        g2[(j, l)] += w * reg[j] * reg[l];
+                        gj[l] += wr * reg[l];
                     }
                 }
                 for (&col, &v) in ri.iter().zip(rv) {
-                    for &j in &nz {
-                        b[(col, j)] += w * v * reg[j];
+                    let bc = &mut b[col * k..(col + 1) * k];
+                    for (&j, &wr) in nz.iter().zip(&wreg) {
+                        bc[j] += wr * v;
                     }
                 }
             }
             // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
-            let sgn: Vec<usize> = (0..k).filter(|&j| sg[j] != 0.0).collect();
             for &col in &touched {
+                let f = sa[col] / wsum;
+                let bc = &mut b[col * k..(col + 1) * k];
                 for &j in &sgn {
-                    b[(col, j)] -= sa[col] * sg[j] / wsum;
+                    bc[j] -= f * sg[j];
                 }
                 sa[col] = 0.0;
                 is_touched[col] = false;
             }
-            touched.clear();
             for &j in &sgn {
+                let f = sg[j] / wsum;
+                let gj = &mut g2[j * k..(j + 1) * k];
                 for &l in &sgn {
-                    g2[(j, l)] -= sg[j] * sg[l] / wsum;
+                    gj[l] -= sg[l] * f;
                 }
             }
+            touched.clear();
+            for &j in &sgn {
+                sg[j] = 0.0;
+                is_sgn[j] = false;
+            }
+            sgn.clear();
         }
+        let b = Mat::from_fn(n, k, |i, j| b[i * k + j]);
+        let g2 = Mat::from_fn(k, k, |i, j| g2[i * k + j]);
         self.schur_score(&b, &g2, &c)
     }
 
@@ -591,8 +645,9 @@ pub fn fit<'a>(
         return Err(SolveError::NoObservations);
     }
     let stations = obs.stations(ObsKind::Range);
-    let n_e: usize = effects.iter().map(|e| e.param_names().len()).sum();
-    let dims = Dims { n_u: layout.n_params, stations: stations.clone(), n_e };
+    let effect_sizes: Vec<usize> = effects.iter().map(|e| e.param_names().len()).collect();
+    let n_e: usize = effect_sizes.iter().sum();
+    let dims = Dims { n_u: layout.n_params, stations: stations.clone(), n_e, effect_sizes };
     let group_station: Vec<usize> =
         obs.groups
             .iter()
@@ -649,7 +704,11 @@ pub fn fit<'a>(
         }
     }
     let sigma: Vec<f64> = (0..obs.len()).map(|i| opts.noise.sigma(kind_of[i], ranges_at_init[i])).collect();
-    let prob = Problem {
+    // The penalty starts at zero when REML estimates it: the identifiability analysis below
+    // sees the data alone.
+    let penalty = opts.smoothing.as_ref().and_then(|s| Penalty::new(layout, s));
+    let reml_wanted = penalty.is_some() && opts.smoothing.as_ref().is_some_and(|s| s.estimate);
+    let mut prob = Problem {
         layout,
         gauge: opts.gauge,
         obs,
@@ -661,6 +720,7 @@ pub fn fit<'a>(
         active,
         sigma,
         structure,
+        penalty,
     };
     let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
@@ -671,7 +731,7 @@ pub fn fit<'a>(
     let first = assemble(&prob, &state);
     let scale = column_scale(&first.n);
     let gauge_z = NullSpace::new(&cons, &scale);
-    let m0 = reduced_matrix(&first, &gauge_z, &scale);
+    let m0 = reduced_matrix(&first, &gauge_z, &scale, None);
     let f0 = Reduced::from_matrix(m0.clone(), 0.0).ok();
     // The identifiability analysis fixes what the data leave undetermined. If the constrained
     // matrix is still not positive definite (directions at the rounding level of a degenerate
@@ -686,7 +746,7 @@ pub fn fit<'a>(
             }
         }
         let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
-        match Reduced::new(&first, &z, &scale, 0.0) {
+        match Reduced::from_matrix(reduced_matrix(&first, &z, &scale, None), 0.0) {
             Ok(f) => break (ident, z, f),
             Err(e) if tol < 1e-4 => {
                 warnings.push(format!(
@@ -699,9 +759,30 @@ pub fn fit<'a>(
         }
     };
     warnings.extend(ident.report.warnings.iter().cloned());
+    // With smoothing, the roughness prior determines the curvature that the readings leave
+    // open: only what neither determines stays undetermined.
+    let (ident, z) = if prob.penalty.is_some() && ident.directions.ncols() > 0 {
+        let ident = prior_covered(&mut prob, &m0, &gauge_z, &scale, ident, tol);
+        let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
+        (ident, z)
+    } else {
+        (ident, z)
+    };
 
     let nonlinear = !stations.is_empty();
     let mut normal = first;
+    // Smoothing: the parameters by REML on the quadratic model at the start (for beams, linear
+    // up to the beam directions, this is the final estimate), the factor with the penalty.
+    let mut reml_log = RemlLog::default();
+    let factor = if prob.penalty.is_some() {
+        if reml_wanted {
+            reml_round(&mut prob, &mut state, &normal.n, &normal, &z, &scale, &mut reml_log);
+            normal = Normal { n: std::mem::replace(&mut normal.n, Mat::zeros(0, 0)), ..gradient(&prob, &state) };
+        }
+        Reduced::new(&prob, &normal, &z, &scale, 0.0)?
+    } else {
+        factor
+    };
     let d0 = state.d.clone();
     let mut lm = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
     let (mut z, mut scale, mut ident) = (z, scale, ident);
@@ -720,9 +801,15 @@ pub fn fit<'a>(
         let normal_nom = assemble(&prob, &nominal);
         let scale_nom = column_scale(&normal_nom.n);
         let z_nom = NullSpace::new(&cons, &scale_nom);
-        let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom);
-        let ident_f = analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, None, &z_nom, &scale_nom, opts.rank_tolerance);
-        if ident_f.report.extra_null_dim > ident.report.extra_null_dim {
+        let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom, None);
+        let mut ident_f =
+            analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, None, &z_nom, &scale_nom, opts.rank_tolerance);
+        if ident_f.report.extra_null_dim > ident.report.extra_null_dim && prob.penalty.is_some() {
+            ident_f = prior_covered(&mut prob, &m_nom, &z_nom, &scale_nom, ident_f, opts.rank_tolerance);
+        }
+        if ident_f.report.extra_null_dim > ident.report.extra_null_dim
+            && ident_f.directions.ncols() > ident.directions.ncols()
+        {
             let w = &ident_f.extra_constraints;
             for r in 0..w.nrows() {
                 // Rows are W^T S (unscaled); W has orthonormal columns in scaled coordinates.
@@ -735,8 +822,8 @@ pub fn fit<'a>(
             normal = assemble(&prob, &state);
             scale = column_scale(&normal.n);
             z = NullSpace::new(&stack_rows(&cons, w), &scale);
-            let factor =
-                Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+            let factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
+                .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
             let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
             lm = LmRun {
                 iterations: lm.iterations + again.iterations,
@@ -753,6 +840,33 @@ pub fn fit<'a>(
             // Same null space: report the analysis with the stations as located.
             ident.report = ident_f.report;
         }
+        // Ranges: REML again on the quadratic model at the solution, and the fit again, until
+        // the smoothing parameters settle (a tenth of a decade).
+        if reml_wanted {
+            for _ in 0..4 {
+                let before = prob.penalty.as_ref().map(|p| p.lambda.clone()).unwrap_or_default();
+                let n_data = if normal.n.nrows() == n {
+                    std::mem::replace(&mut normal.n, Mat::zeros(0, 0))
+                } else {
+                    assemble(&prob, &state).n
+                };
+                reml_round(&mut prob, &mut state, &n_data, &normal, &z, &scale, &mut reml_log);
+                normal = Normal { n: n_data, ..gradient(&prob, &state) };
+                let factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
+                    .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
+                let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
+                lm = LmRun {
+                    iterations: lm.iterations + again.iterations,
+                    warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
+                    ..again
+                };
+                let after = prob.penalty.as_ref().map(|p| p.lambda.clone()).unwrap_or_default();
+                let moved = before.iter().zip(&after).map(|(a, b)| (a.ln() - b.ln()).abs()).fold(0.0, f64::max);
+                if moved < 0.23 {
+                    break;
+                }
+            }
+        }
     }
     warnings.extend(lm.warnings.iter().cloned());
     let (iterations, converged, mut factor, damped) = (lm.iterations, lm.converged, lm.factor, lm.damped);
@@ -767,14 +881,38 @@ pub fn fit<'a>(
     let final_res = Residuals { residual: normal.res.residual.clone(), origin: normal.res.origin.clone() };
     if nonlinear || damped {
         // At the solution, undamped; a tiny damping if rounding makes it indefinite.
-        factor = Reduced::new(&normal, &z, &scale, 0.0).or_else(|_| Reduced::new(&normal, &z, &scale, 1e-12))?;
+        factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
+            .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
     }
-    let cov_scaled = z.embed(&factor.llt.inverse());
+    let mut inverse = factor.llt.inverse();
+    // Smoothing parameters estimated from the readings carry uncertainty of their own.
+    if reml_wanted {
+        if let Some(pen) = prob.penalty.as_ref() {
+            let rp = ReducedPenalty::new(pen, n, &scale, &state.d[..layout.n_params], |x| z.zt(x));
+            if let Some(dc) = smoothing::lambda_covariance(&rp, &pen.lambda, factor.llt.L(), &reml_log.at_upper) {
+                inverse += dc;
+            }
+        }
+    }
+    let cov_scaled = z.embed(&inverse);
     let active_groups: Vec<usize> = (0..obs.groups.len()).filter(|&g| prob.active[g]).collect();
     let n_obs: usize = active_groups.iter().map(|&g| obs.groups[g].len()).sum();
-    let n_free = z.dim();
-    let dof = n_obs.saturating_sub(n_free + active_groups.len()).max(1);
-    let chi2 = normal.cost;
+    // With smoothing, the curvature the prior determines is not fitted to the readings: the
+    // effective number of parameters is the free dimension minus the prior's share.
+    let smoothing_report = prob.penalty.as_ref().map(|pen| {
+        smoothing::report(
+            pen,
+            factor.llt.L(),
+            n,
+            &scale,
+            |x| z.zt(x),
+            z.dim(),
+            reml_wanted.then_some((reml_log.iterations, reml_log.converged, reml_log.at_upper.as_slice())),
+        )
+    });
+    let n_free = smoothing_report.as_ref().map_or(z.dim() as f64, |r| r.edf_total);
+    let dof = (n_obs as f64 - n_free - active_groups.len() as f64).round().max(1.0) as usize;
+    let chi2 = normal.chi2;
     let vf = chi2 / dof as f64;
     let cov_factor = match opts.covariance_scaling {
         CovarianceScaling::APriori => 1.0,
@@ -845,12 +983,161 @@ pub fn fit<'a>(
         sigmas: prob.sigma.clone(),
         stats: ResidualStats { n_obs, rms_m: rms, chi2, dof, variance_factor: vf, per_group },
         identifiability: ident.report,
+        undetermined: undetermined_directions(&ident.directions, layout.n_params),
+        smoothing: smoothing_report,
+        resolution: crate::predict::RESOLVED_EVERYWHERE,
         iterations,
         converged,
         gauge: opts.gauge,
         warnings,
     };
     Ok(Fit { prob, state, z, factor, scale, solution, rows: std::cell::OnceCell::new() })
+}
+
+/// What REML did over its rounds.
+#[derive(Default)]
+struct RemlLog {
+    iterations: usize,
+    converged: bool,
+    /// Per smoothing parameter: at its upper bound (straight line).
+    at_upper: Vec<bool>,
+    /// Whether functions determined only together were given one parameter (first round).
+    merged: bool,
+}
+
+/// One round of REML ([`smoothing::reml`]) on the quadratic model of the fit at `state` (data
+/// normal matrix `n_data`, gradient and chi-square of `normal`): sets the smoothing parameters of
+/// `prob` and moves `state` to the penalised optimum of that model. In the first round,
+/// functions whose curvatures the data cannot tell apart are given one parameter.
+#[allow(clippy::too_many_arguments)]
+fn reml_round(
+    prob: &mut Problem<'_>,
+    state: &mut State,
+    n_data: &Mat<f64>,
+    normal: &Normal,
+    z: &NullSpace,
+    scale: &[f64],
+    log: &mut RemlLog,
+) {
+    let n = prob.dims.n();
+    let n_u = prob.dims.n_u;
+    let Some(pen) = prob.penalty.as_mut() else { return };
+    let m_data = z.project(&Mat::from_fn(n, n, |i, j| n_data[(i, j)] / (scale[i] * scale[j])));
+    // The data's gradient: `normal.b` is `J' W r - S u`.
+    let mut minus_su = vec![0.0; n];
+    pen.apply(&state.d[..n_u], &mut minus_su[..n_u]);
+    let g_data = z.zt(&Mat::from_fn(n, 1, |i, _| (normal.b[i] - minus_su[i]) / scale[i]));
+    let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: normal.chi2 };
+    let mut rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
+    if !log.merged {
+        log.merged = true;
+        let pairs = rp.overlapping_pairs();
+        if !pairs.is_empty() {
+            pen.merge(&pairs);
+            rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
+        }
+    }
+    let lambda0 =
+        if pen.lambda.iter().all(|&l| l > 0.0) { pen.lambda.clone() } else { smoothing::initial_lambda(&q, &rp) };
+    let Some(res) = smoothing::reml(&q, &rp, &lambda0, 60) else {
+        // The penalised matrix did not factorise at the start: keep the starting parameters.
+        pen.lambda = lambda0;
+        return;
+    };
+    pen.lambda = res.lambda;
+    let ds = z.z(&res.y);
+    for k in 0..n {
+        state.d[k] += ds[(k, 0)] / scale[k];
+    }
+    update_directions(prob, state);
+    log.iterations += res.iterations;
+    log.converged = res.converged;
+    log.at_upper = res.at_upper;
+}
+
+/// What stays undetermined once the roughness penalty of `prob` is in the model: the null space
+/// of the data's reduced matrix `m0` (on the gauge-constrained subspace `gz`) plus the penalty of
+/// every function the readings inform. A function whose roughness lies entirely in the data's
+/// null space (not observed at all) does not count: the readings cannot estimate its smoothness,
+/// so its prior would be a guess; its directions stay undetermined, and its penalty is removed
+/// from `prob` (acting on directions held at their minimum-norm value, it would pull on the
+/// determined ones those are coupled with through the gauge). The report keeps what the data
+/// alone determine and says what the prior adds.
+fn prior_covered(
+    prob: &mut Problem<'_>,
+    m0: &Mat<f64>,
+    gz: &NullSpace,
+    scale: &[f64],
+    mut ident: identify::Analysis,
+    tol: f64,
+) -> identify::Analysis {
+    let n = prob.dims.n();
+    let Some(pen) = prob.penalty.as_mut() else { return ident };
+    let k0 = ident.directions.ncols();
+    // The data's null space in reduced coordinates, orthonormal.
+    let w = Mat::from_fn(n, k0, |i, j| ident.directions[(i, j)] * scale[i]);
+    let v = gz.zt(&w);
+    let mut m = m0.clone();
+    let nr = m.nrows();
+    let md = (0..nr).map(|i| m0[(i, i)]).sum::<f64>() / nr.max(1) as f64;
+    let mut unobserved = Vec::new();
+    for (f, bt) in smoothing::block_columns(pen, n, scale, |x| gz.zt(x)) {
+        let total = bt.squared_norm_l2();
+        let inside = (v.transpose() * &bt).squared_norm_l2();
+        if total == 0.0 || total - inside <= 1e-6 * total {
+            unobserved.push(f);
+            continue;
+        }
+        let p = &bt * bt.transpose();
+        let pd = (0..nr).map(|i| p[(i, i)]).sum::<f64>() / nr as f64;
+        let tau = 1e-3 * md / pd.max(f64::MIN_POSITIVE);
+        for j in 0..nr {
+            for i in 0..nr {
+                m[(i, j)] += tau * p[(i, j)];
+            }
+        }
+    }
+    pen.remove(&unobserved);
+    if pen.blocks.is_empty() {
+        prob.penalty = None;
+    }
+    let Ok(eig) = m.self_adjoint_eigen(Side::Lower) else { return ident };
+    let lam: Vec<f64> = (0..nr).map(|i| eig.S().column_vector()[i]).collect();
+    let lmax = lam.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let null: Vec<usize> = (0..nr).filter(|&i| lam[i] < tol * lmax).collect();
+    let u = eig.U();
+    let vn = Mat::from_fn(nr, null.len(), |i, j| u[(i, null[j])]);
+    let wn = gz.z(&vn);
+    ident.extra_constraints = Mat::from_fn(wn.ncols(), n, |r, k| wn[(k, r)] * scale[k]);
+    ident.directions = Mat::from_fn(n, wn.ncols(), |k, r| wn[(k, r)] / scale[k]);
+    let covered = k0.saturating_sub(null.len());
+    if covered > 0 {
+        ident.report.statements.push(format!(
+            "The roughness prior of the smoothing determines {covered} of the {k0} direction(s) the readings leave open (curvature between the readings, with the prior's uncertainty); {} remain undetermined.",
+            null.len()
+        ));
+    }
+    ident
+}
+
+/// The undetermined directions of the model coefficients: the first `n_u` rows of the
+/// identifiability analysis's null directions, orthonormalised (thin QR; directions that live
+/// in the nuisance parameters alone are dropped).
+fn undetermined_directions(directions: &Mat<f64>, n_u: usize) -> Mat<f64> {
+    let m = directions.ncols();
+    if m == 0 {
+        return Mat::zeros(n_u, 0);
+    }
+    let a = directions.subrows(0, n_u).to_owned();
+    let scale = (0..m).map(|j| a.col(j).norm_l2()).fold(0.0, f64::max);
+    if scale == 0.0 {
+        return Mat::zeros(n_u, 0);
+    }
+    let qr = a.qr();
+    let r = qr.R();
+    let q = qr.compute_thin_Q();
+    let keep: Vec<usize> = (0..m.min(n_u)).filter(|&j| r[(j, j)].abs() > 1e-8 * scale).collect();
+    Mat::from_fn(n_u, keep.len(), |i, j| q[(i, keep[j])])
 }
 
 /// Outcome of one run of [`levenberg_marquardt`].
@@ -899,7 +1186,7 @@ fn levenberg_marquardt(
     for it in 0..opts.max_iterations {
         iterations = it + 1;
         let step = if damped {
-            match Reduced::new(normal, z, scale, mu) {
+            match Reduced::new(prob, normal, z, scale, mu) {
                 Ok(r) => reduced_step(&r, normal, z, scale),
                 Err(_) => {
                     mu = (mu * 10.0).max(1e-6);
@@ -943,7 +1230,7 @@ fn levenberg_marquardt(
         *state = trial;
         *normal = trial_normal;
         if refresh && !damped {
-            match Reduced::new(normal, z, scale, 0.0) {
+            match Reduced::new(prob, normal, z, scale, 0.0) {
                 Ok(r) => factor = r,
                 Err(_) => warnings
                     .push("a refreshed normal matrix was not positive definite; the previous one was kept".into()),
@@ -1132,9 +1419,9 @@ fn residual(p: &Problem<'_>, s: &State, gi: usize, i: usize, ebuf: &mut Vec<f64>
     if p.dims.n_e > 0 {
         let ctx = ObsContext { obs: p.obs, i, group: &p.obs.groups[gi], direction: dir, actual };
         let mut col = p.dims.effect_col();
-        for e in p.effects {
+        for (e, &k) in p.effects.iter().zip(&p.dims.effect_sizes) {
             let start = ebuf.len();
-            ebuf.resize(start + e.param_names().len(), 0.0);
+            ebuf.resize(start + k, 0.0);
             e.regressors(&ctx, &mut ebuf[start..]);
             for &v in &ebuf[start..] {
                 f += v * s.d[col];
@@ -1250,7 +1537,9 @@ fn gradient(p: &Problem<'_>, s: &State) -> Normal {
             for_each_entry(p, s, gi, i, &dirs[j], &regs[j * ne..(j + 1) * ne], |k, v| b[k] += wr * v);
         }
     }
-    Normal { n: Mat::zeros(0, 0), b, cost, res }
+    let chi2 = cost;
+    let cost = chi2 + penalise(p, s, &mut b);
+    Normal { n: Mat::zeros(0, 0), b, cost, chi2, res }
 }
 
 /// Assembles the normal equations, eliminating each group's origin. Residuals are centred per
@@ -1386,7 +1675,15 @@ fn assemble(p: &Problem<'_>, s: &State) -> Normal {
             }
         }
     }
-    Normal { n: nm, b, cost, res }
+    let chi2 = cost;
+    let cost = chi2 + penalise(p, s, &mut b);
+    Normal { n: nm, b, cost, chi2, res }
+}
+
+/// Adds the roughness penalty's part to the gradient `b` and returns its cost (0 without one).
+fn penalise(p: &Problem<'_>, s: &State, b: &mut [f64]) -> f64 {
+    let n_u = p.dims.n_u;
+    p.penalty.as_ref().map_or(0.0, |pen| pen.apply(&s.d[..n_u], &mut b[..n_u]))
 }
 
 /// Centred residuals and group origins at a state.
@@ -1415,10 +1712,14 @@ struct Step {
     max_sigma_ratio: f64,
 }
 
-/// Reduced matrix `Z^T N_s Z` in scaled coordinates.
-fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64]) -> Mat<f64> {
+/// Reduced matrix `Z^T N_s Z` in scaled coordinates, with the roughness penalty `pen` added to
+/// `N` when given.
+fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64], pen: Option<&Penalty>) -> Mat<f64> {
     let n = scale.len();
-    let ns = Mat::from_fn(n, n, |i, j| normal.n[(i, j)] / (scale[i] * scale[j]));
+    let mut ns = Mat::from_fn(n, n, |i, j| normal.n[(i, j)] / (scale[i] * scale[j]));
+    if let Some(pen) = pen {
+        pen.add_scaled(&mut ns, scale);
+    }
     z.project(&ns)
 }
 
@@ -1428,8 +1729,9 @@ struct Reduced {
 }
 
 impl Reduced {
-    fn new(normal: &Normal, z: &NullSpace, scale: &[f64], mu: f64) -> Result<Reduced, SolveError> {
-        Reduced::from_matrix(reduced_matrix(normal, z, scale), mu)
+    /// Factor of the reduced matrix of `normal` with the penalty of `prob` and damping `mu`.
+    fn new(prob: &Problem<'_>, normal: &Normal, z: &NullSpace, scale: &[f64], mu: f64) -> Result<Reduced, SolveError> {
+        Reduced::from_matrix(reduced_matrix(normal, z, scale, prob.penalty.as_ref()), mu)
     }
 
     fn from_matrix(mut m: Mat<f64>, mu: f64) -> Result<Reduced, SolveError> {
@@ -1532,7 +1834,7 @@ mod tests {
     #[test]
     fn assembly_matches_brute_force() {
         let (layout, obs) = problem_data();
-        let dims = Dims { n_u: layout.n_params, stations: Vec::new(), n_e: 0 };
+        let dims = Dims { n_u: layout.n_params, stations: Vec::new(), n_e: 0, effect_sizes: Vec::new() };
         let n = dims.n();
         let prob = Problem {
             layout: &layout,
@@ -1546,6 +1848,7 @@ mod tests {
             structure: Structure::new(&layout, &obs),
             ref_energy: Vec::new(),
             active: vec![true; obs.groups.len()],
+            penalty: None,
         };
         assert!(prob.structure.is_some());
         let mut st = State {
@@ -1583,7 +1886,7 @@ mod tests {
         assert!(ev[0] > -1e-10 * emax, "normal matrix not PSD: {} relative", ev[0] / emax);
         let sc = column_scale(&fast.n);
         let z = NullSpace::new(&embed(&gauge::constraints(&layout, Gauge::Patent), n), &sc);
-        let m = reduced_matrix(&fast, &z, &sc);
+        let m = reduced_matrix(&fast, &z, &sc, None);
         let evm = m.self_adjoint_eigenvalues(Side::Lower).unwrap();
         let mmax = evm.iter().cloned().fold(0.0, f64::max);
         assert!(evm[0] > -1e-10 * mmax, "reduced matrix not PSD: {} relative", evm[0] / mmax);
@@ -1634,7 +1937,7 @@ mod tests {
             layout: &layout,
             gauge: Gauge::Datum,
             obs: &obs,
-            dims: Dims { n_u: layout.n_params, stations, n_e: 0 },
+            dims: Dims { n_u: layout.n_params, stations, n_e: 0, effect_sizes: Vec::new() },
             effects: &[],
             group_station: vec![0, 1],
             dir_owner: vec![0, 1],
@@ -1642,6 +1945,7 @@ mod tests {
             structure: Structure::new(&layout, &obs),
             ref_energy: Vec::new(),
             active: vec![true; obs.groups.len()],
+            penalty: None,
         };
         assert!(prob.structure.is_some());
         let n = prob.dims.n();

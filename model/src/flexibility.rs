@@ -1,7 +1,14 @@
-//! How flexible an error model the readings support: the machine file's representation, or a
-//! coarser one, chosen by the Bayesian information criterion of the plain fit.
+//! How flexible an error model the readings support.
 //!
-//! Why: a representation sized for a whole campaign (e.g. cubic B-splines with 8 intervals)
+//! Two answers live here. [`auto_layout`] is `representation: auto`, the default: per axis a
+//! cubic B-spline with as many knot intervals as the readings' positions along that axis
+//! determine, each function smoothed by a roughness penalty whose strength REML estimates
+//! ([`crate::smoothing`]): the data choose each function's flexibility, and no coefficient is
+//! left without readings to determine it. [`choose`] picks among a given representation and
+//! coarser ones by the Bayesian information criterion of the plain fit, for a campaign still
+//! running (the live diagnosis).
+//!
+//! Why the second: a representation sized for a whole campaign (e.g. cubic B-splines with 8 intervals)
 //! has as many free directions as a part of it has readings. Fitted to the first device
 //! positions of a campaign still running, it absorbs what it should reveal: a lost count of
 //! 1.3 µm in one beam leaves a residual at the noise floor, and the diagnosis names instead
@@ -9,10 +16,339 @@
 //! `BIC = χ² + k ln n` (`k` the parameters the data determine, `n` the readings) is kept: more
 //! flexibility only where the readings pay for it.
 
+use crate::axis::{Axis, Travel};
 use crate::campaign::Observations;
-use crate::estimator::{solve, SolveError, SolveOptions};
+use crate::estimator::{fit, solve, Effect, ObsContext, Solution, SolveError, SolveOptions};
+use crate::functions::{ErrorFunction, Motion};
 use crate::model::ModelLayout;
-use crate::repr::Representation;
+use crate::predict::AxisResolution;
+use crate::repr::{Basis, Representation};
+use crate::smoothing::Smoothing;
+use crate::topology::Topology;
+
+/// `representation: auto`: knots from the data, smoothing by REML.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Auto {
+    /// Knot intervals per axis to start from (fewer when the positions determine fewer).
+    pub start_intervals: usize,
+    /// Most knot intervals per axis. The penalty, not the knot count, sets the flexibility; the
+    /// knots must only be fine enough for the finest detail the readings resolve, which the
+    /// refinement test finds.
+    pub max_intervals: usize,
+}
+
+impl Default for Auto {
+    fn default() -> Self {
+        Auto { start_intervals: 12, max_intervals: 48 }
+    }
+}
+
+/// Why an axis ended with its number of knot intervals.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KnotBound {
+    /// The most allowed ([`Auto::max_intervals`]).
+    Limit,
+    /// The most that the readings' positions along the axis determine: between two of them
+    /// the error functions are interpolated (features shorter than the step are not resolved).
+    Positions,
+    /// The readings do not ask for finer knots (the refinement test).
+    Data,
+}
+
+/// One refinement test of an axis: would doubling its knots explain the readings better than
+/// chance? (Score test of the finer basis against the smoothed fit, [`Fit::score`].)
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefinementTest {
+    pub from: usize,
+    pub to: usize,
+    /// Chi-square reduction the finer knots would give, and its degrees of freedom.
+    pub delta_chi2: f64,
+    pub dof: usize,
+    pub p_value: f64,
+    pub refined: bool,
+}
+
+/// What the auto representation chose for one axis, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisKnots {
+    pub axis: Axis,
+    /// Distinct positions of the readings along the axis (to 0.1 um).
+    pub positions: usize,
+    /// Knot intervals of the axis's cubic B-splines.
+    pub intervals: usize,
+    pub bound: KnotBound,
+    pub tests: Vec<RefinementTest>,
+}
+
+impl AxisKnots {
+    /// One line for reports.
+    pub fn describe(&self) -> String {
+        let why = match self.bound {
+            KnotBound::Limit => format!("the most allowed; {} positions along the axis", self.positions),
+            KnotBound::Positions => format!(
+                "the most that the {} positions along the axis determine; between them the functions are interpolated",
+                self.positions
+            ),
+            KnotBound::Data => "finer knots would not explain the readings better".to_string(),
+        };
+        let tests: Vec<String> = self
+            .tests
+            .iter()
+            .map(|t| {
+                format!(
+                    "{} -> {}: chi2 {:.1} on {} dof, p {:.1e}{}",
+                    t.from,
+                    t.to,
+                    t.delta_chi2,
+                    t.dof,
+                    t.p_value,
+                    if t.refined { ", refined" } else { "" }
+                )
+            })
+            .collect();
+        let tests = if tests.is_empty() { String::new() } else { format!("; tests {}", tests.join("; ")) };
+        format!("{}: cubic B-spline, {} intervals ({why}{tests})", self.axis.letter(), self.intervals)
+    }
+}
+
+/// Whether readings at `positions` (sorted, distinct) determine every coefficient of `basis`:
+/// there are positions `t_1 < t_2 < ...`, one per coefficient, each inside its basis function's
+/// support (the Schoenberg-Whitney condition; a greedy match finds them when they exist, since
+/// the supports move monotonically along the axis).
+pub fn positions_determine(basis: &Basis, positions: &[f64]) -> bool {
+    let mut next = 0;
+    'coefficient: for i in 0..basis.n_coeffs() {
+        while next < positions.len() {
+            let q = positions[next];
+            next += 1;
+            let mut inside = false;
+            basis.visit(q, false, |k, v| inside |= k == i && v > 1e-9);
+            if inside {
+                continue 'coefficient;
+            }
+        }
+        return false;
+    }
+    true
+}
+
+/// Per axis, the most knot intervals (up to `most`) that readings at `positions` determine.
+pub fn positions_bound(travel: &Travel, positions: &[Vec<f64>; 3], most: usize) -> [(usize, usize); 3] {
+    Axis::ALL.map(|axis| {
+        let [lo, hi] = travel.range(axis);
+        let inside: Vec<f64> =
+            positions[axis.index()].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
+        let most = most.max(1);
+        let k = (1..=most.min(inside.len().saturating_sub(3)).max(1))
+            .rev()
+            .find(|&k| positions_determine(&Basis::new(Representation::BSpline { intervals: k }, lo, hi), &inside))
+            .unwrap_or(1);
+        (k, inside.len())
+    })
+}
+
+/// The auto layout with `intervals` per axis; functions with a representation in `overrides`
+/// keep it.
+fn layout_with(
+    topology: &Topology,
+    travel: Travel,
+    intervals: [usize; 3],
+    overrides: &[Option<Representation>; 18],
+) -> ModelLayout {
+    let reprs: [Representation; 18] = std::array::from_fn(|i| {
+        overrides[i]
+            .unwrap_or(Representation::BSpline { intervals: intervals[ErrorFunction::from_index(i).axis.index()] })
+    });
+    ModelLayout::new(topology.clone(), travel, reprs)
+}
+
+/// The smoothing of the auto layout: every function without an override, by REML.
+fn smoothing_for(overrides: &[Option<Representation>; 18]) -> Smoothing {
+    let mut s = Smoothing::reml();
+    for (i, o) in overrides.iter().enumerate() {
+        s.penalised[i] = o.is_none();
+    }
+    s
+}
+
+/// The starting `representation: auto` layout for readings at `positions` (per axis, sorted and
+/// distinct: [`crate::identify::DataSummary::positions_of`]), before any refinement: per axis
+/// `auto.start_intervals`, or fewer where the positions determine fewer. Functions given a
+/// representation in `overrides` keep it and are not smoothed.
+pub fn auto_layout(
+    topology: Topology,
+    travel: Travel,
+    positions: &[Vec<f64>; 3],
+    auto: &Auto,
+    overrides: &[Option<Representation>; 18],
+) -> (ModelLayout, [AxisKnots; 3], Smoothing) {
+    let bound = positions_bound(&travel, positions, auto.max_intervals);
+    let knots = Axis::ALL.map(|axis| {
+        let (most, n) = bound[axis.index()];
+        let intervals = most.min(auto.start_intervals.max(1));
+        let bound = if intervals == most && most < auto.max_intervals { KnotBound::Positions } else { KnotBound::Data };
+        AxisKnots { axis, positions: n, intervals, bound, tests: Vec::new() }
+    });
+    let layout = layout_with(&topology, travel, knots.clone().map(|k| k.intervals), overrides);
+    (layout, knots, smoothing_for(overrides))
+}
+
+/// A solve with `representation: auto` and what it chose.
+pub struct AutoSolve {
+    pub solution: Solution,
+    pub knots: [AxisKnots; 3],
+}
+
+/// Most rounds of knot refinement.
+const REFINE_ROUNDS: usize = 3;
+/// Significance below which finer knots are taken: their score must be beyond what noise gives
+/// in a million campaigns, since a refinement that only fits noise costs variance everywhere.
+pub const REFINE_P: f64 = 1e-6;
+
+/// Solves `obs` with `representation: auto`: starting from [`auto_layout`], the smoothing by
+/// REML; then, per axis whose knots are not yet at their bound, a score test of the doubled
+/// knots against that fit (the finer B-spline's extra detail as an extension of the model,
+/// [`Fit::score`]); axes where the readings ask for finer detail (p < [`REFINE_P`]) are refined
+/// and the campaign solved again, REML starting from the smoothing found. `opts` carries the
+/// gauge, noise and the rest; its smoothing is replaced.
+pub fn solve_auto(
+    topology: &Topology,
+    travel: Travel,
+    obs: &Observations,
+    opts: &SolveOptions,
+    auto: &Auto,
+    overrides: &[Option<Representation>; 18],
+) -> Result<AutoSolve, SolveError> {
+    let positions = crate::identify::DataSummary::positions_of(&obs.x);
+    let (_, mut knots, mut smoothing) = auto_layout(topology.clone(), travel, &positions, auto, overrides);
+    let bound = positions_bound(&travel, &positions, auto.max_intervals);
+    for round in 0..=REFINE_ROUNDS {
+        let layout = layout_with(topology, travel, knots.clone().map(|k| k.intervals), overrides);
+        let o = SolveOptions { smoothing: Some(smoothing.clone()), ..opts.clone() };
+        let f = fit(&layout, obs, &o, &[])?;
+        let mut refined = false;
+        if round < REFINE_ROUNDS {
+            for a in Axis::ALL {
+                let k = &mut knots[a.index()];
+                let most = bound[a.index()].0;
+                let functions: Vec<ErrorFunction> = (0..6)
+                    .map(|m| ErrorFunction::from_index(a.index() * 6 + m))
+                    .filter(|f| overrides[f.index()].is_none())
+                    .collect();
+                if k.intervals >= most || functions.is_empty() || k.tests.last().is_some_and(|t| !t.refined) {
+                    continue;
+                }
+                let to = (2 * k.intervals).min(most);
+                let [lo, hi] = travel.range(a);
+                let ext = Refinement {
+                    topology: topology.clone(),
+                    axis: a,
+                    basis: Basis::new(Representation::BSpline { intervals: to }, lo, hi),
+                    functions,
+                };
+                let sc = f.score(&ext);
+                let p = refinement_p(sc.delta_chi2, sc.rank, &f.solution().stats);
+                let take = p < REFINE_P;
+                k.tests.push(RefinementTest {
+                    from: k.intervals,
+                    to,
+                    delta_chi2: sc.delta_chi2,
+                    dof: sc.rank,
+                    p_value: p,
+                    refined: take,
+                });
+                if take {
+                    k.intervals = to;
+                    refined = true;
+                }
+            }
+        }
+        if !refined {
+            let mut solution = f.into_solution();
+            for (a, k) in knots.iter_mut().enumerate() {
+                k.bound = if k.intervals >= auto.max_intervals {
+                    KnotBound::Limit
+                } else if k.intervals >= bound[a].0 {
+                    KnotBound::Positions
+                } else {
+                    KnotBound::Data
+                };
+                if k.bound == KnotBound::Positions {
+                    let [lo, hi] = travel.range(k.axis);
+                    let inside = positions[a].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
+                    solution.resolution[a] = AxisResolution::at(inside);
+                }
+            }
+            return Ok(AutoSolve { solution, knots });
+        }
+        if let Some(r) = &f.solution().smoothing {
+            smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
+        }
+    }
+    unreachable!("the last round never refines")
+}
+
+/// p-value of a refinement whose score is `delta_chi2` on `dof` degrees of freedom: the F-test of
+/// the reduction per degree of freedom against the residual variance per degree of freedom of
+/// the fit (so that an instrument noise stated too large or too small neither hides nor invents
+/// detail).
+fn refinement_p(delta_chi2: f64, dof: usize, stats: &crate::estimator::ResidualStats) -> f64 {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    if dof == 0 || stats.dof == 0 || stats.chi2 <= 0.0 {
+        return 1.0;
+    }
+    let f = (delta_chi2 / dof as f64) / (stats.chi2 / stats.dof as f64);
+    if !f.is_finite() {
+        return 0.0;
+    }
+    FisherSnedecor::new(dof as f64, stats.dof as f64).map(|d| d.sf(f)).unwrap_or(1.0)
+}
+
+/// The detail of a finer B-spline on one axis, as an extension of a fitted model: for each of
+/// the axis's smoothed functions, the regressors of every other basis function of the finer
+/// B-spline (with the coarse one they span the finer space; the score test's Schur complement
+/// removes what they share with the model).
+struct Refinement {
+    topology: Topology,
+    axis: Axis,
+    basis: Basis,
+    functions: Vec<ErrorFunction>,
+}
+
+impl Effect for Refinement {
+    fn id(&self) -> &str {
+        "refinement"
+    }
+
+    fn param_names(&self) -> Vec<String> {
+        let n = self.basis.n_coeffs() / 2;
+        self.functions.iter().flat_map(|f| (0..n).map(move |j| format!("{}_{}", f.name(), 2 * j + 1))).collect()
+    }
+
+    fn regressors(&self, ctx: &ObsContext<'_>, out: &mut [f64]) {
+        let (x, p) = (ctx.obs.x[ctx.i], ctx.obs.p[ctx.i]);
+        let n = self.basis.n_coeffs() / 2;
+        let h = self.topology.lever_arm(self.axis, &x, &p);
+        let mut odd = [(0usize, 0.0f64); 4];
+        let mut m = 0;
+        self.basis.visit(self.axis.coord(&x), false, |j, b| {
+            if j % 2 == 1 && j / 2 < n {
+                odd[m] = (j / 2, b);
+                m += 1;
+            }
+        });
+        for (k, f) in self.functions.iter().enumerate() {
+            let v = match f.motion {
+                Motion::Translation => f.component.unit(),
+                Motion::Rotation => f.component.unit().cross(&h),
+            };
+            let d = ctx.direction.dot(&v);
+            for &(j, b) in &odd[..m] {
+                out[k * n + j] = d * b;
+            }
+        }
+    }
+}
 
 /// Coarsening factors tried, from the layout as given down to about a third of its knots.
 pub const FACTORS: [f64; 4] = [1.0, 0.75, 0.5, 0.375];
@@ -133,6 +469,35 @@ mod tests {
     use crate::model::ModelLayout;
     use crate::topology::Topology;
     use crate::Travel;
+
+    #[test]
+    fn auto_knots_are_bounded_by_the_positions_the_readings_occupy() {
+        let travel = Travel::new([0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]);
+        let even = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
+            (0..n).map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64).collect()
+        };
+        // The paper's tracer steps: 11 positions per axis determine 8 intervals (11 coefficients).
+        let positions = [even(0.0, 0.7, 11), even(-0.5, 0.0, 11), even(-0.7, 0.0, 11)];
+        let topo = Topology::parse("FYXZ").unwrap();
+        let (layout, knots, smoothing) = auto_layout(topo.clone(), travel, &positions, &Auto::default(), &[None; 18]);
+        assert!(knots.iter().all(|k| k.intervals == 8 && k.bound == KnotBound::Positions), "{knots:?}");
+        assert_eq!(layout.n_params, 18 * 11 + 3);
+        assert!(smoothing.penalised.iter().all(|&p| p));
+        // Dense positions: the starting knots, refined later only where the readings ask.
+        let dense = [even(0.0, 0.7, 500), even(-0.5, 0.0, 400), even(-0.7, 0.0, 3)];
+        let mut over = [None; 18];
+        over[ErrorFunction::parse("EXX").unwrap().index()] = Some(Representation::Polynomial { degree: 3 });
+        let (layout, knots, smoothing) = auto_layout(topo, travel, &dense, &Auto::default(), &over);
+        assert_eq!((knots[0].intervals, knots[0].bound), (12, KnotBound::Data));
+        // Three positions determine a cubic only as far as a single interval goes.
+        assert_eq!(knots[2].intervals, 1);
+        assert_eq!(layout.basis(ErrorFunction::parse("EXX").unwrap()).repr, Representation::Polynomial { degree: 3 });
+        assert!(!smoothing.penalised[ErrorFunction::parse("EXX").unwrap().index()]);
+        // A gap: positions only in the first half of X cannot carry knots in the second.
+        let half = [even(0.0, 0.35, 200), even(-0.5, 0.0, 400), even(-0.7, 0.0, 400)];
+        let (_, knots, _) = auto_layout(Topology::parse("FXYZ").unwrap(), travel, &half, &Auto::default(), &[None; 18]);
+        assert_eq!(knots[0].intervals, 1, "{knots:?}");
+    }
 
     #[test]
     fn coarsening_keeps_a_minimum_and_never_grows() {

@@ -121,6 +121,8 @@ pub(crate) struct Analysis {
     pub report: Identifiability,
     /// Rows to append to the constraints (empty when everything is identifiable).
     pub extra_constraints: Mat<f64>,
+    /// The undetermined directions themselves, unscaled (`dim x m`, columns `S^-1 w`).
+    pub directions: Mat<f64>,
 }
 
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
@@ -163,7 +165,7 @@ pub(crate) fn analyse(
         report.rank = z.dim();
         gauge_check(layout, n, lambda_max_estimate(m), &gauge_basis, &mut report);
         describe(layout, summary, n, &Mat::zeros(dim, 0), &mut report);
-        return Analysis { report, extra_constraints: Mat::zeros(0, dim) };
+        return Analysis { report, extra_constraints: Mat::zeros(0, dim), directions: Mat::zeros(dim, 0) };
     }
     // Eigenvalues (the singular values of the scaled, constrained design, squared);
     // eigenvectors only when something is undetermined.
@@ -171,7 +173,7 @@ pub(crate) fn analyse(
         Ok(l) => l,
         Err(e) => {
             report.warnings.push(format!("identifiability analysis failed: {e:?}"));
-            return Analysis { report, extra_constraints: Mat::zeros(0, dim) };
+            return Analysis { report, extra_constraints: Mat::zeros(0, dim), directions: Mat::zeros(dim, 0) };
         }
     };
     let lmax = lam.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
@@ -194,10 +196,11 @@ pub(crate) fn analyse(
         }
     }
     let extra = Mat::from_fn(w.ncols(), dim, |r, k| w[(k, r)] * scale[k]);
+    let directions = Mat::from_fn(dim, w.ncols(), |k, r| w[(k, r)] / scale[k]);
 
     gauge_check(layout, n, lmax, &gauge_basis, &mut report);
     describe(layout, summary, n, &w, &mut report);
-    Analysis { report, extra_constraints: extra }
+    Analysis { report, extra_constraints: extra, directions }
 }
 
 /// How strongly the data observe each analytic gauge freedom, after the nuisance parameters

@@ -38,6 +38,7 @@ pub mod path;
 pub mod predict;
 pub mod range;
 pub mod repr;
+pub mod smoothing;
 pub mod station_geometry;
 pub mod topology;
 pub mod validate;

@@ -4,11 +4,127 @@
 use crate::axis::{Axis, Travel};
 use crate::functions::ErrorFunction;
 use crate::model::{ErrorModel, Sensitivity};
-use faer::Mat;
+use faer::{Mat, MatRef};
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
 /// Coverage factor of the expanded uncertainties (k = 2, about 95 %).
 pub const COVERAGE_K: f64 = 2.0;
+
+/// Relative sensitivity to the undetermined directions above which a predicted quantity is
+/// *not determined by the data* (see [`Uncertainty::share`]). A quantity the data determine sees
+/// them at the rounding level of the eigen-decomposition that found them (below 1e-8); one that
+/// depends on them sees them at order one.
+pub const NOT_DETERMINED_ABOVE: f64 = 1e-4;
+
+/// Where along an axis the readings resolve the error functions.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum AxisResolution {
+    /// Everywhere over the travel (the readings' positions are at least as dense as the knots).
+    #[default]
+    Everywhere,
+    /// At the measured positions only (the knots are as many as they determine): between two
+    /// of them the functions are interpolated, and a feature shorter than their spacing is not
+    /// resolved by the readings.
+    AtPositions {
+        /// Sorted, metres.
+        positions: Vec<f64>,
+        /// How close to a position a coordinate counts as measured, metres.
+        tolerance_m: f64,
+    },
+}
+
+impl AxisResolution {
+    /// The resolution of readings at `positions` (sorted, distinct): a coordinate within 1 %
+    /// of the median spacing of a position counts as measured.
+    pub fn at(positions: Vec<f64>) -> AxisResolution {
+        let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_by(f64::total_cmp);
+        let tolerance_m = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0) * 0.01;
+        AxisResolution::AtPositions { positions, tolerance_m }
+    }
+
+    /// Whether coordinate `q` lies between measured positions (not at one).
+    pub fn interpolates(&self, q: f64) -> bool {
+        match self {
+            AxisResolution::Everywhere => false,
+            AxisResolution::AtPositions { positions, tolerance_m } => {
+                let i = positions.partition_point(|&p| p < q);
+                let near = |k: usize| positions.get(k).is_some_and(|&p| (p - q).abs() <= *tolerance_m);
+                !(near(i) || (i > 0 && near(i - 1)))
+            }
+        }
+    }
+}
+
+/// The resolution of every axis: everywhere.
+pub const RESOLVED_EVERYWHERE: [AxisResolution; 3] =
+    [AxisResolution::Everywhere, AxisResolution::Everywhere, AxisResolution::Everywhere];
+
+/// What is known of an identified model's coefficients: their covariance, and the directions
+/// the data left undetermined beyond the gauge ([`crate::estimator::Solution::undetermined`]).
+/// A prediction that depends on an undetermined direction has no uncertainty a number could
+/// express: it is reported as not determined, never as the minimum-norm value with the
+/// covariance's (zero) variance along that direction.
+#[derive(Clone, Copy, Debug)]
+pub struct Uncertainty<'a> {
+    pub covariance: &'a Mat<f64>,
+    /// Orthonormal columns (`n_params x m`).
+    pub undetermined: MatRef<'a, f64>,
+    /// Where the readings resolve the functions along each axis.
+    pub resolution: &'a [AxisResolution; 3],
+}
+
+impl<'a> Uncertainty<'a> {
+    pub fn new(covariance: &'a Mat<f64>, undetermined: &'a Mat<f64>) -> Uncertainty<'a> {
+        Uncertainty { covariance, undetermined: undetermined.as_ref(), resolution: &RESOLVED_EVERYWHERE }
+    }
+
+    /// The same, with where the readings resolve each axis.
+    pub fn with_resolution(self, resolution: &'a [AxisResolution; 3]) -> Uncertainty<'a> {
+        Uncertainty { resolution, ..self }
+    }
+
+    /// A covariance with nothing undetermined (e.g. a model from an older file, a truth).
+    pub fn determined(covariance: &'a Mat<f64>) -> Uncertainty<'a> {
+        Uncertainty {
+            covariance,
+            undetermined: MatRef::from_column_major_slice(&[], covariance.nrows(), 0),
+            resolution: &RESOLVED_EVERYWHERE,
+        }
+    }
+
+    /// Whether any axis is resolved only at its measured positions.
+    pub fn interpolates_anywhere(&self) -> bool {
+        self.resolution.iter().any(|r| *r != AxisResolution::Everywhere)
+    }
+
+    /// Whether any direction is undetermined.
+    pub fn has_undetermined(&self) -> bool {
+        self.undetermined.ncols() > 0
+    }
+
+    /// How much the linear functional with sparse rows `(index, value)` (one row per output
+    /// component) depends on the undetermined directions: `||G U||_F / ||G||_F`, 0 to 1.
+    pub fn share<'r>(&self, rows: impl Iterator<Item = &'r [(usize, f64)]>) -> f64 {
+        let m = self.undetermined.ncols();
+        if m == 0 {
+            return 0.0;
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for row in rows {
+            for j in 0..m {
+                let v: f64 = row.iter().map(|&(i, g)| g * self.undetermined[(i, j)]).sum();
+                num += v * v;
+            }
+            den += row.iter().map(|&(_, g)| g * g).sum::<f64>();
+        }
+        if den == 0.0 {
+            0.0
+        } else {
+            (num / den).sqrt()
+        }
+    }
+}
 
 /// Volumetric error at one point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -17,25 +133,46 @@ pub struct PointError {
     pub p: Vector3<f64>,
     /// `e = actual - (X + p)`.
     pub e: Vector3<f64>,
-    /// Covariance of `e`.
+    /// Covariance of `e` (of its determined part; see [`PointError::is_determined`]).
     pub cov: Matrix3<f64>,
+    /// How much `e` depends on directions the data leave undetermined ([`Uncertainty::share`]).
+    pub undetermined: f64,
+    /// The point lies between the measured positions of an axis the readings resolve only
+    /// there ([`AxisResolution::AtPositions`]): `e` and its uncertainty are interpolated, under
+    /// the smoothness the readings showed elsewhere.
+    pub interpolated: bool,
 }
 
 impl PointError {
+    /// Whether the data determine `e` here. When not, `e` is the minimum-norm value, which
+    /// means nothing, and the uncertainties are infinite.
+    pub fn is_determined(&self) -> bool {
+        self.undetermined <= NOT_DETERMINED_ABOVE
+    }
+
     /// Expanded uncertainty (k = 2) of the error vector along its least favourable direction:
-    /// `2 sqrt(lambda_max(cov))`.
+    /// `2 sqrt(lambda_max(cov))`; infinite where not determined.
     pub fn u95(&self) -> f64 {
+        if !self.is_determined() {
+            return f64::INFINITY;
+        }
         let ev = SymmetricEigen::new(self.cov).eigenvalues;
         COVERAGE_K * ev.max().max(0.0).sqrt()
     }
 
-    /// Standard uncertainty of each component.
+    /// Standard uncertainty of each component (infinite where not determined).
     pub fn sigma(&self) -> Vector3<f64> {
+        if !self.is_determined() {
+            return Vector3::repeat(f64::INFINITY);
+        }
         Vector3::new(self.cov[(0, 0)].sqrt(), self.cov[(1, 1)].sqrt(), self.cov[(2, 2)].sqrt())
     }
 
-    /// Standard uncertainty of the magnitude `|e|` (first order).
+    /// Standard uncertainty of the magnitude `|e|` (first order; infinite where not determined).
     pub fn sigma_norm(&self) -> f64 {
+        if !self.is_determined() {
+            return f64::INFINITY;
+        }
         let n = self.e.norm();
         if n == 0.0 {
             return (self.cov.trace() / 3.0).sqrt();
@@ -58,10 +195,18 @@ pub fn propagate(s: &Sensitivity, cov: &Mat<f64>) -> Matrix3<f64> {
     0.5 * (c + c.transpose())
 }
 
-/// Volumetric error and its covariance at `(x, p)`.
-pub fn predict(model: &ErrorModel, cov: &Mat<f64>, x: &Point3<f64>, p: &Vector3<f64>) -> PointError {
+/// Volumetric error and its covariance at `(x, p)`, and whether the data determine it.
+pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> PointError {
     let s = model.layout.sensitivity(x, p);
-    PointError { x: *x, p: *p, e: s.apply(&model.u), cov: propagate(&s, cov) }
+    let undetermined = if unc.has_undetermined() {
+        let rows: Vec<Vec<(usize, f64)>> =
+            (0..3).map(|k| s.idx.iter().zip(&s.dedu).map(|(&i, d)| (i, d[k])).collect()).collect();
+        unc.share(rows.iter().map(|r| r.as_slice()))
+    } else {
+        0.0
+    };
+    let interpolated = Axis::ALL.iter().any(|&a| unc.resolution[a.index()].interpolates(a.coord(x)));
+    PointError { x: *x, p: *p, e: s.apply(&model.u), cov: propagate(&s, unc.covariance), undetermined, interpolated }
 }
 
 /// Regular grid over the travel with spacing `step` (at least 2 points per axis, ends
@@ -84,23 +229,37 @@ pub fn grid(travel: &Travel, step: f64) -> Vec<Point3<f64>> {
     out
 }
 
-/// Largest `|e|` over a grid (refined by a finer local search) and where it occurs.
+/// Largest `|e|` over a grid (refined by a finer local search) and where it occurs, among the
+/// points where the data determine it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Extremum {
     pub at: PointError,
     pub magnitude_m: f64,
+    /// Grid points searched, and of them those where the data do not determine the error.
+    pub grid_points: usize,
+    pub undetermined_points: usize,
 }
 
-/// Finds the largest volumetric error magnitude for probe offset `p`.
-pub fn max_error(model: &ErrorModel, cov: &Mat<f64>, p: &Vector3<f64>, step: f64) -> Extremum {
+/// Finds the largest volumetric error magnitude for probe offset `p` where the data determine
+/// it (everywhere, when nothing is undetermined). When the data determine it nowhere, the
+/// largest minimum-norm value is returned, flagged (`at.is_determined()` is false).
+pub fn max_error(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>, step: f64) -> Extremum {
     let travel = model.layout.travel;
     let mut best = Point3::origin();
     let mut best_m = -1.0;
-    for x in grid(&travel, step) {
-        let m = model.error(&x, p).norm();
+    let pts = grid(&travel, step);
+    let determined = |x: &Point3<f64>| !unc.has_undetermined() || predict(model, unc, x, p).is_determined();
+    let mask: Vec<bool> = pts.iter().map(determined).collect();
+    let undetermined_points = mask.iter().filter(|d| !**d).count();
+    let any = undetermined_points < pts.len();
+    for (x, &ok) in pts.iter().zip(&mask) {
+        if any && !ok {
+            continue;
+        }
+        let m = model.error(x, p).norm();
         if m > best_m {
             best_m = m;
-            best = x;
+            best = *x;
         }
     }
     // Local refinement by coordinate search inside the travel.
@@ -115,7 +274,7 @@ pub fn max_error(model: &ErrorModel, cov: &Mat<f64>, p: &Vector3<f64>, step: f64
                     let [lo, hi] = travel.range(a);
                     c[a.index()] = (c[a.index()] + sgn * h).clamp(lo, hi);
                     let m = model.error(&c, p).norm();
-                    if m > best_m + 1e-15 {
+                    if m > best_m + 1e-15 && (!any || determined(&c)) {
                         best_m = m;
                         best = c;
                         improved = true;
@@ -125,7 +284,7 @@ pub fn max_error(model: &ErrorModel, cov: &Mat<f64>, p: &Vector3<f64>, step: f64
         }
         h /= 2.0;
     }
-    Extremum { at: predict(model, cov, &best, p), magnitude_m: best_m }
+    Extremum { at: predict(model, unc, &best, p), magnitude_m: best_m, grid_points: pts.len(), undetermined_points }
 }
 
 /// One row of a per-axis compensation table: the six functions of an axis at a position.
@@ -134,12 +293,12 @@ pub struct CompensationRow {
     pub q_m: f64,
     /// Values of the axis's six functions in canonical order (`EXK EYK EZK EAK EBK ECK`).
     pub values: [f64; 6],
-    /// Standard uncertainties of those values.
+    /// Standard uncertainties of those values (infinite where the data do not determine one).
     pub sigmas: [f64; 6],
 }
 
 /// Compensation table of axis `a` at `n` equally spaced positions over its travel.
-pub fn compensation_table(model: &ErrorModel, cov: &Mat<f64>, a: Axis, n: usize) -> Vec<CompensationRow> {
+pub fn compensation_table(model: &ErrorModel, unc: &Uncertainty<'_>, a: Axis, n: usize) -> Vec<CompensationRow> {
     let [lo, hi] = model.layout.travel.range(a);
     let n = n.max(2);
     (0..n)
@@ -150,17 +309,23 @@ pub fn compensation_table(model: &ErrorModel, cov: &Mat<f64>, a: Axis, n: usize)
             for m in 0..6 {
                 let f = ErrorFunction::from_index(a.index() * 6 + m);
                 values[m] = model.function_value(f, q);
-                sigmas[m] = function_sigma(model, cov, f, q);
+                sigmas[m] = function_sigma(model, unc, f, q);
             }
             CompensationRow { q_m: q, values, sigmas }
         })
         .collect()
 }
 
-/// Standard uncertainty of one function's value at `q`.
-pub fn function_sigma(model: &ErrorModel, cov: &Mat<f64>, f: ErrorFunction, q: f64) -> f64 {
+/// Standard uncertainty of one function's value at `q`; infinite where the data do not
+/// determine it.
+pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunction, q: f64) -> f64 {
     let off = model.layout.range(f).start;
     let b = model.layout.basis(f).eval(q);
+    let row: Vec<(usize, f64)> = b.iter().map(|&(i, v)| (off + i, v)).collect();
+    if unc.share(std::iter::once(row.as_slice())) > NOT_DETERMINED_ABOVE {
+        return f64::INFINITY;
+    }
+    let cov = unc.covariance;
     let mut v = 0.0;
     for &(i, bi) in &b {
         for &(j, bj) in &b {

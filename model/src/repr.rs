@@ -328,6 +328,91 @@ impl Basis {
         (0..n).map(|i| rhs[(i, 0)]).collect()
     }
 
+    /// Roughness matrix `R_ij = int b_i^(m)(q) b_j^(m)(q) dq` over the travel for derivative
+    /// order `m` (2 or 3), so that `c . R c` is the integrated square of the function's `m`-th
+    /// derivative (O'Sullivan's penalty for B-splines). Its null space is exactly the
+    /// polynomials of degree below `m`, for any representation that contains them: such a
+    /// penalty never acts on the constants and slopes that carry the gauge and the squareness.
+    /// `None` for a table, whose curvature is concentrated at its nodes.
+    ///
+    /// Derivatives are central differences of the exact first derivatives at interior
+    /// quadrature nodes, with a step of 1e-4 of the piece: exact for the cubic B-spline, whose
+    /// first derivative is quadratic on each knot interval.
+    pub fn roughness(&self, order: usize) -> Option<Mat<f64>> {
+        if matches!(self.repr, Representation::Table { .. }) {
+            return None;
+        }
+        let n = self.n_coeffs();
+        let bp = self.breakpoints();
+        let h = 1e-4 * self.length() / (bp.len() - 1) as f64;
+        let mut r = Mat::<f64>::zeros(n, n);
+        let (mut plus, mut minus, mut mid) = (Vec::new(), Vec::new(), Vec::new());
+        let mut d2 = vec![0.0; n];
+        for (q, w) in self.quadrature() {
+            self.eval_into(q + h, true, &mut plus);
+            self.eval_into(q - h, true, &mut minus);
+            d2.iter_mut().for_each(|v| *v = 0.0);
+            if order == 3 {
+                self.eval_into(q, true, &mut mid);
+                for &(i, v) in &plus {
+                    d2[i] += v / (h * h);
+                }
+                for &(i, v) in &minus {
+                    d2[i] += v / (h * h);
+                }
+                for &(i, v) in &mid {
+                    d2[i] -= 2.0 * v / (h * h);
+                }
+            } else {
+                for &(i, v) in &plus {
+                    d2[i] += v / (2.0 * h);
+                }
+                for &(i, v) in &minus {
+                    d2[i] -= v / (2.0 * h);
+                }
+            }
+            for i in 0..n {
+                if d2[i] == 0.0 {
+                    continue;
+                }
+                for j in 0..n {
+                    r[(i, j)] += w * d2[i] * d2[j];
+                }
+            }
+        }
+        Some(r)
+    }
+
+    /// For a cubic B-spline, one row per knot interval: `sqrt(h) b'''` at the interval (the
+    /// third derivative is constant on it), so that the rows' Gram matrix is
+    /// [`Basis::roughness`]`(3)` and each row is the roughness of one interval. `None` for other
+    /// representations.
+    pub fn interval_roughness_rows(&self) -> Option<Mat<f64>> {
+        let Representation::BSpline { intervals } = self.repr else { return None };
+        let n = self.n_coeffs();
+        let h = self.length() / intervals as f64;
+        let eps = 1e-4 * h;
+        let (mut plus, mut minus, mut mid) = (Vec::new(), Vec::new(), Vec::new());
+        let mut rows = Mat::<f64>::zeros(intervals, n);
+        for i in 0..intervals {
+            let q = self.lo + h * (i as f64 + 0.5);
+            self.eval_into(q + eps, true, &mut plus);
+            self.eval_into(q - eps, true, &mut minus);
+            self.eval_into(q, true, &mut mid);
+            let w = h.sqrt() / (eps * eps);
+            for &(j, v) in &plus {
+                rows[(i, j)] += w * v;
+            }
+            for &(j, v) in &minus {
+                rows[(i, j)] += w * v;
+            }
+            for &(j, v) in &mid {
+                rows[(i, j)] -= 2.0 * w * v;
+            }
+        }
+        Some(rows)
+    }
+
     /// RMS of the function over the travel.
     pub fn rms(&self, c: &[f64]) -> f64 {
         let len = self.length();
@@ -445,6 +530,50 @@ mod tests {
             Representation::BSpline { intervals: 7 },
             Representation::BSpline { intervals: 1 },
         ]
+    }
+
+    #[test]
+    fn roughness_is_the_integrated_squared_curvature_and_spares_linear_functions() {
+        for r in all_reprs() {
+            let b = Basis::new(r, -0.5, 0.2);
+            let Some(rough) = b.roughness(2) else {
+                assert!(matches!(r, Representation::Table { .. }));
+                continue;
+            };
+            let third = b.roughness(3).unwrap();
+            let quad = |m: &Mat<f64>, c: &[f64]| {
+                let n = c.len();
+                (0..n).map(|i| (0..n).map(|j| c[i] * m[(i, j)] * c[j]).sum::<f64>()).sum::<f64>()
+            };
+            let lin = b.fit(|q| 3.0 * q - 0.1);
+            assert!(quad(&rough, &lin).abs() < 1e-9, "{r:?}: {}", quad(&rough, &lin));
+            // f = q^2 and q^3 (in every representation but the single harmonic):
+            // int (f'')^2 = 4 L; int (f''')^2 = 0 and 36 L.
+            if !matches!(r, Representation::Harmonic { .. }) {
+                let par = b.fit(|q| q * q);
+                assert!((quad(&rough, &par) - 4.0 * 0.7).abs() < 1e-7, "{r:?}: {}", quad(&rough, &par));
+                assert!(quad(&third, &par).abs() < 1e-6, "{r:?}: {}", quad(&third, &par));
+                let cub = b.fit(|q| q * q * q);
+                assert!((quad(&third, &cub) - 36.0 * 0.7).abs() < 1e-5, "{r:?}: {}", quad(&third, &cub));
+            }
+        }
+    }
+
+    #[test]
+    fn interval_rows_add_up_to_the_third_derivative_roughness() {
+        for k in [1, 2, 7, 12] {
+            let b = Basis::new(Representation::BSpline { intervals: k }, -0.5, 0.2);
+            let rows = b.interval_roughness_rows().unwrap();
+            let gram = rows.transpose() * &rows;
+            let r = b.roughness(3).unwrap();
+            let scale = (0..r.nrows()).map(|i| r[(i, i)]).fold(0.0, f64::max);
+            for i in 0..r.nrows() {
+                for j in 0..r.ncols() {
+                    assert!((gram[(i, j)] - r[(i, j)]).abs() < 1e-6 * scale, "{k}: ({i}, {j})");
+                }
+            }
+        }
+        assert!(Basis::new(Representation::Polynomial { degree: 4 }, 0.0, 1.0).interval_roughness_rows().is_none());
     }
 
     #[test]

@@ -100,16 +100,18 @@ pub struct PositioningPoint {
     pub x: Point3<f64>,
     /// `n . (e(X_s, p) - e(A, p))`, metres.
     pub deviation_m: f64,
-    /// Standard uncertainty of the deviation (from the model covariance), metres.
+    /// Standard uncertainty of the deviation (from the model covariance), metres; infinite
+    /// where the data do not determine the deviation.
     pub sigma_m: f64,
 }
 
 /// Predicts the positioning deviations of `line` at the `targets` (distances from the start)
 /// for probe offset `p`: exact kinematic chain for the value, small-angle sensitivity for the
-/// uncertainty (`g^T C g` with `g = n^T (G(X_s) - G(A))`).
+/// uncertainty (`g^T C g` with `g = n^T (G(X_s) - G(A))`), infinite where `g` depends on the
+/// directions the data leave undetermined.
 pub fn predict_positioning(
     model: &ErrorModel,
-    cov: &Mat<f64>,
+    unc: &crate::predict::Uncertainty<'_>,
     line: &Line,
     p: &Vector3<f64>,
     targets: &[f64],
@@ -118,6 +120,7 @@ pub fn predict_positioning(
     let e0 = model.error(&line.start, p);
     let g0: Vec<(usize, f64)> = model.layout.sensitivity(&line.start, p).project(&n).collect();
     let n_params = model.layout.n_params;
+    let cov = unc.covariance;
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     targets
         .iter()
@@ -127,7 +130,13 @@ pub fn predict_positioning(
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
             let var = if with_cov { quadratic_form(cov, &g) } else { 0.0 };
-            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m: var.max(0.0).sqrt() }
+            let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE;
+            PositioningPoint {
+                s_m: s,
+                x,
+                deviation_m: dev,
+                sigma_m: if determined { var.max(0.0).sqrt() } else { f64::INFINITY },
+            }
         })
         .collect()
 }
@@ -268,7 +277,13 @@ mod tests {
         let n = layout.n_params;
         let cov = Mat::<f64>::from_fn(n, n, |i, j| if i == j { 1e-14 } else { 0.0 });
         let line = axis_line(&layout.travel, Axis::X, &Point3::new(0.0, 0.0, 0.0));
-        let pts = predict_positioning(&m, &cov, &line, &Vector3::zeros(), &line.targets(8));
+        let pts = predict_positioning(
+            &m,
+            &crate::predict::Uncertainty::determined(&cov),
+            &line,
+            &Vector3::zeros(),
+            &line.targets(8),
+        );
         let b = layout.basis(exx);
         let r = layout.range(exx);
         for p in &pts {

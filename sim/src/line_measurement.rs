@@ -89,7 +89,14 @@ mod tests {
             let t = line.targets(11);
             let m = measure_line(&machine, &li, &line, &Vector3::zeros(), &t, 5, &mut rng);
             let n = truth.layout.n_params;
-            let pred = predict_positioning(&truth, &faer::Mat::zeros(n, n), &line, &Vector3::zeros(), &t);
+            let zero = faer::Mat::zeros(n, n);
+            let pred = predict_positioning(
+                &truth,
+                &volcal::predict::Uncertainty::determined(&zero),
+                &line,
+                &Vector3::zeros(),
+                &t,
+            );
             for (p, d) in pred.iter().zip(&m.mean_deviation_m) {
                 assert!((p.deviation_m - d).abs() < 1e-12, "{}: {} vs {}", line.name, p.deviation_m, d);
             }

@@ -154,7 +154,7 @@ fn seed_stats(layout: &ModelLayout, truth: &ErrorModel, sol: &Solution) -> SeedS
     let mut s = SeedStats { d2: 0.0, v2: 0.0, z2: 0.0, nz: 0, within_2sigma: 0, iterations: sol.iterations };
     let p = Vector3::zeros();
     for x in grid() {
-        let pe = predict::predict(&sol.model, &sol.covariance, &x, &p);
+        let pe = predict::predict(&sol.model, &sol.uncertainty(), &x, &p);
         let d = sol.model.error(&x, &p) - truth.error(&x, &p);
         s.d2 += d.norm_squared();
         s.v2 += pe.cov.trace();
@@ -321,7 +321,7 @@ fn predicted_and_actual_rms(sol: &Solution, truth: &ErrorModel) -> (f64, f64) {
     let g = grid();
     for x in &g {
         let p = Vector3::zeros();
-        v2 += predict::predict(&sol.model, &sol.covariance, x, &p).cov.trace();
+        v2 += predict::predict(&sol.model, &sol.uncertainty(), x, &p).cov.trace();
         d2 += (sol.model.error(x, &p) - truth.error(x, &p)).norm_squared();
     }
     ((v2 / g.len() as f64).sqrt(), (d2 / g.len() as f64).sqrt())

@@ -75,7 +75,7 @@ fn errors(sol: &volcal::Solution, truth: &ErrorModel, offs: &[Vector3<f64>], z: 
     let (mut a2, mut p2, mut n) = (0.0, 0.0, 0.0);
     for x in predict::grid(&truth.layout.travel, 0.2) {
         for p in offs {
-            let pe = predict::predict(&sol.model, &sol.covariance, &x, p);
+            let pe = predict::predict(&sol.model, &sol.uncertainty(), &x, p);
             let d = sol.model.error(&x, p) - truth.error(&x, p);
             for k in 0..3 {
                 z.push(d[k] / pe.cov[(k, k)].sqrt());

@@ -9,8 +9,7 @@
 use super::colors;
 use super::paths;
 use crate::rerun::{RecordingStream, TimeColumn};
-use faer::Mat;
-use volcal::predict::{self, COVERAGE_K};
+use volcal::predict::{self, Uncertainty, COVERAGE_K};
 use volcal::{Axis, ErrorFunction, ErrorModel, Motion, Squareness};
 
 /// Positions at which each function is sampled for display.
@@ -24,15 +23,20 @@ pub fn display_unit(motion: Motion) -> &'static str {
     }
 }
 
-/// Logs every function of `model` with its band from `cov` (the coefficient covariance).
-pub fn log_error_functions(rec: &RecordingStream, model: &ErrorModel, cov: &Mat<f64>) -> anyhow::Result<()> {
+/// Logs every function of `model` with its band from `unc` (the coefficient covariance); a
+/// function the data do not determine is drawn without a band and named so.
+pub fn log_error_functions(rec: &RecordingStream, model: &ErrorModel, unc: &Uncertainty<'_>) -> anyhow::Result<()> {
+    let cov = unc.covariance;
     for f in ErrorFunction::all() {
         let [lo, hi] = model.layout.travel.range(f.axis);
         let q: Vec<f64> = (0..SAMPLES).map(|i| lo + (hi - lo) * i as f64 / (SAMPLES - 1) as f64).collect();
         let v: Vec<f64> = q.iter().map(|&q| model.function_value(f, q)).collect();
-        let u: Vec<f64> = q.iter().map(|&q| COVERAGE_K * predict::function_sigma(model, cov, f, q)).collect();
+        let u: Vec<f64> = q.iter().map(|&q| COVERAGE_K * predict::function_sigma(model, unc, f, q)).collect();
+        let open = u.iter().any(|u| !u.is_finite());
+        let u: Vec<f64> = u.into_iter().map(|u| if u.is_finite() { u } else { 0.0 }).collect();
+        let name = format!("{} ({}){}", f.name(), f.describe(), if open { ", not determined by the data" } else { "" });
         let color = colors::component(f.component.index());
-        log_with_band(rec, &paths::function(f), &format!("{} ({})", f.name(), f.describe()), color, &q, &v, &u)?;
+        log_with_band(rec, &paths::function(f), &name, color, &q, &v, &u)?;
     }
     for s in Squareness::ALL {
         let [lo, hi] = model.layout.travel.range(s.axis());

@@ -51,6 +51,8 @@ pub const FUNCTIONS: &str = "functions";
 pub const MAP_VOLUMETRIC: &str = "map/volumetric";
 pub const MAP_MAX: &str = "map/volumetric/max";
 pub const MAP_SCALE: &str = "map/volumetric/scale";
+/// Grid points where the data do not determine the volumetric error (grey, no arrow).
+pub const MAP_UNDETERMINED: &str = "map/volumetric/not_determined";
 pub const LIVE: &str = "live";
 
 /// Root of everything the diagnosis adds.

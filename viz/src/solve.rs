@@ -39,8 +39,8 @@ pub fn log_solution(
     scene::log_lines(rec, obs, stats, &solution.residuals, &solution.sigmas, model)?;
     residuals::log_line_series(rec, paths::RESIDUALS, obs, &solution.residuals, "residual")?;
     residuals::log_rms_bars(rec, paths::RESIDUAL_RMS, obs, &solution.residuals)?;
-    error_functions::log_error_functions(rec, model, &solution.covariance)?;
-    let map = volumetric::log_volumetric_map(rec, model, &solution.covariance, &Vector3::zeros())?;
+    error_functions::log_error_functions(rec, model, &solution.uncertainty())?;
+    let map = volumetric::log_volumetric_map(rec, model, &solution.uncertainty(), &Vector3::zeros())?;
     rec.log_static(paths::SUMMARY, &crate::rerun::TextDocument::from_markdown(summary_markdown(obs, solution, &map)))?;
     Ok(map)
 }

@@ -7,9 +7,8 @@ use super::colors;
 use super::paths;
 use super::scene::{f32p, f32v};
 use crate::rerun::{RecordingStream, RecordingStreamResult};
-use faer::Mat;
 use nalgebra::{Point3, Vector3};
-use volcal::predict::{self, Extremum};
+use volcal::predict::{self, Extremum, Uncertainty};
 use volcal::{Axis, ErrorModel};
 
 /// Grid points per axis along the longest travel (shorter axes get proportionally fewer).
@@ -39,15 +38,27 @@ pub fn round_down_125(x: f64) -> f64 {
 pub fn log_volumetric_map(
     rec: &RecordingStream,
     model: &ErrorModel,
-    cov: &Mat<f64>,
+    unc: &Uncertainty<'_>,
     probe: &Vector3<f64>,
 ) -> RecordingStreamResult<MapInfo> {
     let travel = model.layout.travel;
     let longest = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
     let shortest = Axis::ALL.iter().map(|&a| travel.length(a)).fold(f64::INFINITY, f64::min);
     let step = longest / (POINTS_ALONG_LONGEST - 1.0);
-    let grid = predict::grid(&travel, step);
-    let max = predict::max_error(model, cov, probe, step / 2.0);
+    let all = predict::grid(&travel, step);
+    // Arrows where the data determine the error; grey points where they do not.
+    let (grid, open): (Vec<Point3<f64>>, Vec<Point3<f64>>) = all
+        .into_iter()
+        .partition(|x| !unc.has_undetermined() || predict::predict(model, unc, x, probe).is_determined());
+    if !open.is_empty() {
+        rec.log_static(
+            paths::MAP_UNDETERMINED,
+            &crate::rerun::Points3D::new(open.iter().map(|x| f32p(&(x + probe))))
+                .with_colors([[110u8, 110, 110, 255]])
+                .with_radii([crate::rerun::Radius::new_ui_points(3.0)]),
+        )?;
+    }
+    let max = predict::max_error(model, unc, probe, step / 2.0);
     let emax = max.magnitude_m.max(1e-12);
     let scale = round_down_125(ARROW_FRACTION * shortest / emax);
     let scale_bar_m = round_down_125(emax / 2.0);

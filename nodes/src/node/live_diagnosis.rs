@@ -294,7 +294,8 @@ pub fn run(node: &mut RosNode, machine: MachineSource, out: Option<PathBuf>, lin
 /// The diagnosis of `campaign`. A partial one is made with the representation that the pairs
 /// so far support ([`volcal::flexibility::choose`]: the machine file's or a coarser one, by BIC),
 /// which its statements say; the final one with the machine file's, as `volcal diagnose` on the
-/// bag.
+/// bag. With `representation: auto` both are the machine file's: auto already fits the knots to
+/// the positions the pairs so far occupy.
 fn diagnose_live(
     campaign: &Campaign,
     machine: &Machine,
@@ -302,7 +303,7 @@ fn diagnose_live(
     partial: bool,
     provenance: Provenance,
 ) -> Result<Diagnosed> {
-    if !partial {
+    if !partial || machine.auto.is_some() {
         return diagnose_campaign(campaign, machine, source, provenance);
     }
     let obs = prepare_campaign(campaign, machine, source)?.obs;

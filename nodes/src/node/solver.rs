@@ -85,7 +85,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         let solved = solve_campaign(&campaign, machine, &source, provenance)?;
         print!(
             "{}",
-            summary(&solved.solution.model, &solved.solution.covariance, &solved.file, &probe_offsets(&campaign))
+            summary(&solved.solution.model, &solved.solution.uncertainty(), &solved.file, &probe_offsets(&campaign))
         );
         (solved.file, None)
     };

@@ -1,0 +1,283 @@
+//! The campaigns and measures of issue 12's acceptance suite, shared by its test and by the
+//! `auto_study` example that prints the full table: truth families x (beams, tracer, joint) x
+//! (dense, sparse), solved by `representation: auto` and by the oracle of the truth's own basis.
+
+use crate::truth_families::{draw, Family, FamilyTruth, Oracle};
+use nalgebra::Vector3;
+use std::time::Instant;
+use volcal::campaign::{prepare, Campaign};
+use volcal::flexibility::{solve_auto, Auto, AutoSolve, AxisKnots};
+use volcal::predict;
+use volcal::{gauge, solve, ErrorModel, Gauge, SolveOptions, Topology, Travel};
+use volcal_formats::machine::Machine;
+use volcal_formats::plan::sim_config;
+use volcal_sim::{simulate, Method, Plan};
+
+/// How the machine is measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Measure {
+    Beams,
+    Tracer,
+    Joint,
+}
+
+/// How densely.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Density {
+    Dense,
+    Sparse,
+}
+
+/// One case of the suite.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    pub family: Family,
+    pub topology: &'static str,
+    pub measure: Measure,
+    pub density: Density,
+}
+
+impl Case {
+    pub fn label(&self) -> String {
+        format!(
+            "{} | {} | {:?} | {:?}",
+            self.family.name(),
+            if self.family == Family::PaperTables { "FYXZ (paper)" } else { self.topology },
+            self.measure,
+            self.density
+        )
+    }
+
+    /// The machine: the demo CMM's travel (1.0 x 0.8 x 0.6 m) with the case's topology and the
+    /// patent gauge, or the paper's CMM with its datum gauge.
+    pub fn machine(&self) -> Machine {
+        let text = if self.family == Family::PaperTables {
+            volcal_formats::machine::PAPER_MACHINE.to_string()
+        } else {
+            format!("topology: {}\ntravel: {{x: [0.0, 1.0], y: [0.0, 0.8], z: [-0.6, 0.0]}}\n", self.topology)
+        };
+        Machine::parse(&text).expect("machine")
+    }
+
+    fn plans(&self, travel: &Travel) -> Vec<Plan> {
+        let beams = match self.density {
+            Density::Dense => Plan::patent_example(),
+            Density::Sparse => Plan::short(),
+        };
+        let steps = match self.density {
+            Density::Dense => 20.0,
+            Density::Sparse => 10.0,
+        };
+        let tracer = Plan { path_step_m: volcal::Axis::ALL.map(|a| travel.length(a) / steps), ..Plan::paper_tracer() };
+        match self.measure {
+            Measure::Beams => vec![beams],
+            Measure::Tracer => vec![tracer],
+            Measure::Joint => vec![beams, tracer],
+        }
+    }
+}
+
+/// Every case of the acceptance suite: three families x three ways to measure x two densities,
+/// beams on two topologies.
+pub fn suite() -> Vec<Case> {
+    let mut out = Vec::new();
+    for family in [Family::PolySine, Family::PiecewiseBump, Family::PaperTables] {
+        for measure in [Measure::Beams, Measure::Tracer, Measure::Joint] {
+            for density in [Density::Dense, Density::Sparse] {
+                let topologies: &[&'static str] = match (family, measure) {
+                    (Family::PaperTables, _) => &["FYXZ"],
+                    (_, Measure::Beams) => &["FXYZ", "FYXZ"],
+                    _ => &["FXYZ"],
+                };
+                for &topology in topologies {
+                    out.push(Case { family, topology, measure, density });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// What one campaign gave.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// Map error (RMS over the grid and the campaign's probe offsets, where the model is
+    /// determined) of `auto` and of the oracle; the RMS of `auto`'s predicted standard
+    /// uncertainty (sqrt of the mean trace) there.
+    pub auto_rms_m: f64,
+    pub oracle_rms_m: f64,
+    pub predicted_rms_m: f64,
+    /// Largest |error component| / its standard uncertainty, and how many (point, offset,
+    /// component) values exceed 3, at points where the readings resolve the map.
+    pub max_z: f64,
+    pub over_3: usize,
+    pub values: usize,
+    /// The same at points between measured positions (interpolated).
+    pub max_z_interpolated: f64,
+    pub over_3_interpolated: usize,
+    pub values_interpolated: usize,
+    /// Grid points (x offsets) reported as not determined, of all.
+    pub undetermined: usize,
+    pub points: usize,
+    pub knots: [AxisKnots; 3],
+    pub edf: f64,
+    pub auto_s: f64,
+}
+
+/// Simulates the case for `seed`, solves it both ways and measures both maps.
+pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
+    let machine = case.machine();
+    let topology: Topology = machine.layout.topology.clone();
+    let travel = machine.layout.travel;
+    let truth: FamilyTruth = draw(case.family, &topology, travel, seed);
+    let mut campaign: Option<Campaign> = None;
+    for (k, plan) in case.plans(&travel).into_iter().enumerate() {
+        let mut cfg = sim_config(&machine, plan, seed);
+        cfg.machine.truth = truth.model.clone();
+        let out = simulate(&cfg, &[], seed * 7 + k as u64).expect("simulate");
+        match campaign.as_mut() {
+            None => campaign = Some(out.campaign),
+            Some(c) => c.readings.extend(out.campaign.readings),
+        }
+    }
+    let campaign = campaign.unwrap();
+    let prep = prepare(&campaign, &travel, &machine.expansion).expect("prepare");
+    let obs = &prep.obs;
+    let g: Gauge = machine.gauge;
+    let plain = SolveOptions { gauge: g, noise: machine.noise, ..SolveOptions::default() };
+
+    let t0 = Instant::now();
+    let AutoSolve { solution: sol, knots } =
+        solve_auto(&topology, travel, obs, &plain, auto, &[None; 18]).expect("auto solve");
+    let auto_s = t0.elapsed().as_secs_f64();
+    if std::env::var_os("AUTO_EDF").is_some() {
+        if let Some(r) = &sol.smoothing {
+            let v: Vec<String> =
+                r.functions.iter().map(|f| format!("{}:{:.1}/{}", f.function.name(), f.edf, f.n_coeffs)).collect();
+            eprintln!("  edf {}", v.join(" "));
+        }
+    }
+
+    let oracle_layout = Oracle::layout(topology.clone(), travel);
+    let oracle = Oracle::new(&truth, g, &oracle_layout);
+    let refs: [&dyn volcal::estimator::Effect; 1] = [&oracle];
+    let so = solve(&oracle_layout, obs, &plain, &refs).expect("oracle solve");
+    let oc: Vec<f64> = so.effects[0].1.iter().map(|(_, v, _)| *v).collect();
+
+    let aligned =
+        ErrorModel { layout: truth.model.layout.clone(), u: gauge::align(&truth.model.layout, g, &truth.model.u) };
+    let offsets: Vec<Vector3<f64>> = {
+        let mut v: Vec<Vector3<f64>> = Vec::new();
+        for p in &obs.p {
+            if !v.iter().any(|o| (o - p).norm() < 1e-9) {
+                v.push(*p);
+            }
+        }
+        v
+    };
+    let unc = sol.uncertainty();
+    let (mut a2, mut o2, mut p2, mut n) = (0.0, 0.0, 0.0, 0usize);
+    let (mut max_z, mut over_3, mut values, mut undetermined, mut points) = (0.0f64, 0, 0, 0, 0);
+    let (mut max_zi, mut over_3i, mut values_i) = (0.0f64, 0, 0);
+    for x in predict::grid(&travel, 0.1) {
+        for p in &offsets {
+            points += 1;
+            let pe = predict::predict(&sol.model, &unc, &x, p);
+            if !pe.is_determined() {
+                undetermined += 1;
+                continue;
+            }
+            let t = aligned.error(&x, p);
+            let d = sol.model.error(&x, p) - t;
+            let d_o = oracle.error(&so.model, &oc, &x, p) - t;
+            for k in 0..3 {
+                // A component fixed by the gauge (the datum at its origin) has no variance and
+                // no error: it is not a test of the uncertainty.
+                let sigma = pe.cov[(k, k)].max(0.0).sqrt();
+                if sigma < 1e-12 && d[k].abs() < 1e-11 {
+                    continue;
+                }
+                let z = d[k].abs() / sigma;
+                if pe.interpolated {
+                    max_zi = max_zi.max(z);
+                    over_3i += (z > 3.0) as usize;
+                    values_i += 1;
+                } else {
+                    max_z = max_z.max(z);
+                    over_3 += (z > 3.0) as usize;
+                    values += 1;
+                }
+            }
+            a2 += d.norm_squared();
+            o2 += d_o.norm_squared();
+            p2 += pe.cov.trace();
+            n += 1;
+        }
+    }
+    let n = n.max(1) as f64;
+    Outcome {
+        auto_rms_m: (a2 / n).sqrt(),
+        oracle_rms_m: (o2 / n).sqrt(),
+        predicted_rms_m: (p2 / n).sqrt(),
+        max_z,
+        over_3,
+        values,
+        max_z_interpolated: max_zi,
+        over_3_interpolated: over_3i,
+        values_interpolated: values_i,
+        undetermined,
+        points,
+        knots,
+        edf: sol.smoothing.as_ref().map_or(0.0, |s| s.edf_total),
+        auto_s,
+    }
+}
+
+/// A case over seeds.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    pub seeds: usize,
+    /// RMS over seeds of `auto`'s map error divided by the oracle's.
+    pub oracle_ratio: f64,
+    /// RMS over seeds of the actual map error divided by that of the predicted uncertainty.
+    pub mc_ratio: f64,
+    pub auto_rms_m: f64,
+    pub oracle_rms_m: f64,
+    pub max_z: f64,
+    pub over_3: usize,
+    pub values: usize,
+    pub max_z_interpolated: f64,
+    pub over_3_interpolated: usize,
+    pub values_interpolated: usize,
+    pub undetermined: usize,
+    pub points: usize,
+    pub mean_s: f64,
+}
+
+pub fn summarise(outcomes: &[Outcome]) -> Summary {
+    let ms = |f: &dyn Fn(&Outcome) -> f64| {
+        (outcomes.iter().map(|o| f(o).powi(2)).sum::<f64>() / outcomes.len() as f64).sqrt()
+    };
+    let (a, o, p) = (ms(&|o| o.auto_rms_m), ms(&|o| o.oracle_rms_m), ms(&|o| o.predicted_rms_m));
+    Summary {
+        seeds: outcomes.len(),
+        oracle_ratio: a / o,
+        mc_ratio: a / p,
+        auto_rms_m: a,
+        oracle_rms_m: o,
+        max_z: outcomes.iter().map(|o| o.max_z).fold(0.0, f64::max),
+        over_3: outcomes.iter().map(|o| o.over_3).sum(),
+        values: outcomes.iter().map(|o| o.values).sum(),
+        max_z_interpolated: outcomes.iter().map(|o| o.max_z_interpolated).fold(0.0, f64::max),
+        over_3_interpolated: outcomes.iter().map(|o| o.over_3_interpolated).sum(),
+        values_interpolated: outcomes.iter().map(|o| o.values_interpolated).sum(),
+        undetermined: outcomes.iter().map(|o| o.undetermined).sum(),
+        points: outcomes.iter().map(|o| o.points).sum(),
+        mean_s: outcomes.iter().map(|o| o.auto_s).sum::<f64>() / outcomes.len() as f64,
+    }
+}
+
+/// Whether a plan measures by tracer (for labels).
+pub fn is_tracer(plan: &Plan) -> bool {
+    plan.method == Method::Tracer
+}

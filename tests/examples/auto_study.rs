@@ -1,0 +1,66 @@
+//! Issue 12's table: `representation: auto` against the oracle of each truth's own basis.
+//!
+//! `cargo run --release -p volcal_tests --example auto_study -- [SEEDS] [FIRST_SEED] [FILTER]`
+//! prints, per case, the ratio of map errors (auto / oracle), the Monte Carlo calibration
+//! (actual / predicted map RMS), the honesty figures and the time of one auto solve.
+
+use volcal::flexibility::Auto;
+use volcal_tests::auto_study::{run, suite, summarise};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let seeds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20);
+    let first: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let filter = args.get(3).cloned().unwrap_or_default();
+    let d = Auto::default();
+    let env = |k: &str, v: usize| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(v);
+    let auto =
+        Auto { start_intervals: env("AUTO_START", d.start_intervals), max_intervals: env("AUTO_MAX", d.max_intervals) };
+    println!("| case | seeds | auto map RMS um | oracle map RMS um | auto/oracle | actual/predicted | max abs z | abs z > 3 | interpolated: max abs z, abs z > 3 | not determined | solve s |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for case in suite() {
+        if !case.label().contains(&filter) {
+            continue;
+        }
+        let outcomes: Vec<_> = (first..first + seeds).map(|s| run(&case, s, &auto)).collect();
+        if std::env::var_os("AUTO_SEEDS").is_some() {
+            for (s, o) in (first..).zip(&outcomes) {
+                eprintln!(
+                    "  seed {s}: auto {:.3} um, oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}",
+                    o.auto_rms_m * 1e6,
+                    o.oracle_rms_m * 1e6,
+                    o.predicted_rms_m * 1e6,
+                    o.max_z,
+                    o.edf
+                );
+            }
+        }
+        let s = summarise(&outcomes);
+        println!(
+            "| {} | {} | {:.4} | {:.4} | {:.3} | {:.3} | {:.2} | {} of {} | {:.2}, {} of {} | {} of {} | {:.3} |",
+            case.label(),
+            s.seeds,
+            s.auto_rms_m * 1e6,
+            s.oracle_rms_m * 1e6,
+            s.oracle_ratio,
+            s.mc_ratio,
+            s.max_z,
+            s.over_3,
+            s.values,
+            s.max_z_interpolated,
+            s.over_3_interpolated,
+            s.values_interpolated,
+            s.undetermined,
+            s.points,
+            s.mean_s
+        );
+        let k = &outcomes[0].knots;
+        eprintln!(
+            "  knots: {} / {} / {}; edf {:.1}",
+            k[0].describe(),
+            k[1].describe(),
+            k[2].describe(),
+            outcomes[0].edf
+        );
+    }
+}
