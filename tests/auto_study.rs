@@ -194,7 +194,7 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
                 // A component fixed by the gauge (the datum at its origin) has no variance and
                 // no error: it is not a test of the uncertainty.
                 let sigma = pe.cov[(k, k)].max(0.0).sqrt();
-                if sigma < 1e-12 && d[k].abs() < 1e-11 {
+                if sigma < 1e-12 && d[k].abs() < 1e-9 {
                     continue;
                 }
                 let z = d[k].abs() / sigma;

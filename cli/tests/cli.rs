@@ -94,7 +94,7 @@ fn solve_predict_map_report_and_determinism() {
     let o = volcal(&["predict", m1.to_str().unwrap(), pts.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     let e = std::fs::read_to_string(&out).unwrap();
-    assert!(e.starts_with("x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,u95_m\n"), "{e}");
+    assert!(e.starts_with("x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,u95_m,determined\n"), "{e}");
     assert_eq!(e.lines().count(), 3);
 
     let map = d.join("map.csv");

@@ -149,7 +149,11 @@ impl<'de> Deserialize<'de> for RepresentationSpec {
                 return Ok(RepresentationSpec::Auto(auto));
             }
         }
-        serde_yaml::from_value::<Representation>(v).map(RepresentationSpec::Given).map_err(D::Error::custom)
+        serde_yaml::from_value::<Representation>(v).map(RepresentationSpec::Given).map_err(|e| {
+            D::Error::custom(format!(
+                "representation: expected auto, {{kind: auto, ...}} or a representation such as {{kind: bspline, intervals: 12}} ({e})"
+            ))
+        })
     }
 }
 

@@ -104,6 +104,14 @@ pub struct RefinementEntry {
     pub dof: usize,
     pub p_value: f64,
     pub refined: bool,
+    /// False: the readings' geometry does not determine the finer knots; the refinement was
+    /// undone.
+    #[serde(default = "yes")]
+    pub determined: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -192,6 +200,7 @@ impl RepresentationChoice {
                             dof: t.dof,
                             p_value: t.p_value,
                             refined: t.refined,
+                            determined: t.determined,
                         })
                         .collect(),
                 })

@@ -66,6 +66,9 @@ pub struct RefinementTest {
     pub dof: usize,
     pub p_value: f64,
     pub refined: bool,
+    /// Whether the readings' geometry determines the finer knots (a refinement that would
+    /// leave directions undetermined is undone).
+    pub determined: bool,
 }
 
 /// What the auto representation chose for one axis, and why.
@@ -102,7 +105,13 @@ impl AxisKnots {
                     t.delta_chi2,
                     t.dof,
                     t.p_value,
-                    if t.refined { ", refined" } else { "" }
+                    if t.refined {
+                        ", refined"
+                    } else if !t.determined {
+                        ", undone: the readings' geometry does not determine the finer knots"
+                    } else {
+                        ""
+                    }
                 )
             })
             .collect();
@@ -222,10 +231,25 @@ pub fn solve_auto(
     let positions = crate::identify::DataSummary::positions_of(&obs.x);
     let (_, mut knots, mut smoothing) = auto_layout(topology.clone(), travel, &positions, auto, overrides);
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
+    // The previous round's solution, knots and partly determined null dimension: a refinement
+    // the readings' geometry does not determine is undone.
+    let mut previous: Option<(Solution, [AxisKnots; 3], usize)> = None;
     for round in 0..=REFINE_ROUNDS {
         let layout = layout_with(topology, travel, knots.clone().map(|k| k.intervals), overrides);
         let o = SolveOptions { smoothing: Some(smoothing.clone()), ..opts.clone() };
         let f = fit(&layout, obs, &o, &[])?;
+        let partial = partly_determined(f.solution(), &layout);
+        if let Some((sol, mut kept, before)) = previous.take() {
+            if partial > before {
+                for k in kept.iter_mut() {
+                    if let Some(t) = k.tests.last_mut().filter(|t| t.refined) {
+                        t.refined = false;
+                        t.determined = false;
+                    }
+                }
+                return Ok(finish(sol, kept, &bound, auto, &positions, travel));
+            }
+        }
         let mut refined = false;
         if round < REFINE_ROUNDS {
             for a in Axis::ALL {
@@ -256,6 +280,7 @@ pub fn solve_auto(
                     dof: sc.rank,
                     p_value: p,
                     refined: take,
+                    determined: true,
                 });
                 if take {
                     k.intervals = to;
@@ -264,28 +289,60 @@ pub fn solve_auto(
             }
         }
         if !refined {
-            let mut solution = f.into_solution();
-            for (a, k) in knots.iter_mut().enumerate() {
-                k.bound = if k.intervals >= auto.max_intervals {
-                    KnotBound::Limit
-                } else if k.intervals >= bound[a].0 {
-                    KnotBound::Positions
-                } else {
-                    KnotBound::Data
-                };
-                if k.bound == KnotBound::Positions {
-                    let [lo, hi] = travel.range(k.axis);
-                    let inside = positions[a].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
-                    solution.resolution[a] = AxisResolution::at(inside);
-                }
-            }
-            return Ok(AutoSolve { solution, knots });
+            return Ok(finish(f.into_solution(), knots, &bound, auto, &positions, travel));
         }
         if let Some(r) = &f.solution().smoothing {
             smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
         }
+        let mut kept = knots.clone();
+        for (k, t) in kept.iter_mut().zip(knots.iter()) {
+            if t.tests.last().is_some_and(|t| t.refined) {
+                k.intervals = t.tests.last().unwrap().from;
+            }
+        }
+        previous = Some((f.into_solution(), kept, partial));
     }
     unreachable!("the last round never refines")
+}
+
+/// The knots' bounds and the solution's resolution of the chosen layout.
+fn finish(
+    mut solution: Solution,
+    mut knots: [AxisKnots; 3],
+    bound: &[(usize, usize); 3],
+    auto: &Auto,
+    positions: &[Vec<f64>; 3],
+    travel: Travel,
+) -> AutoSolve {
+    for (a, k) in knots.iter_mut().enumerate() {
+        k.bound = if k.intervals >= auto.max_intervals {
+            KnotBound::Limit
+        } else if k.intervals >= bound[a].0 {
+            KnotBound::Positions
+        } else {
+            KnotBound::Data
+        };
+        if k.bound == KnotBound::Positions {
+            let [lo, hi] = travel.range(k.axis);
+            let inside = positions[a].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
+            solution.resolution[a] = AxisResolution::at(inside);
+        }
+    }
+    AutoSolve { solution, knots }
+}
+
+/// Directions the readings leave undetermined beyond those of functions they do not observe at
+/// all (whose count grows with the knots whatever the readings): what a refinement must not
+/// increase.
+fn partly_determined(sol: &Solution, layout: &ModelLayout) -> usize {
+    let id = &sol.identifiability;
+    let unobserved: usize = id
+        .not_observed
+        .iter()
+        .filter_map(|name| ErrorFunction::parse(name))
+        .map(|f| layout.basis(f).n_coeffs().saturating_sub(1))
+        .sum();
+    id.extra_null_dim.saturating_sub(unobserved)
 }
 
 /// p-value of a refinement whose score is `delta_chi2` on `dof` degrees of freedom: the F-test of

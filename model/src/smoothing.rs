@@ -812,8 +812,8 @@ pub(crate) fn report(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::axis::Travel;
     use crate::topology::Topology;
-    use crate::Travel;
 
     #[test]
     fn the_penalty_never_acts_on_a_gauge_freedom() {
@@ -824,7 +824,7 @@ mod tests {
                 let layout = ModelLayout::uniform(
                     Topology::parse(topo).unwrap(),
                     travel,
-                    crate::Representation::BSpline { intervals: 8 },
+                    crate::repr::Representation::BSpline { intervals: 8 },
                 );
                 let mut pen = Penalty::new(&layout, &Smoothing::reml()).unwrap();
                 pen.lambda.iter_mut().for_each(|l| *l = 1.0);
