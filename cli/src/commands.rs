@@ -263,17 +263,17 @@ pub fn map_cmd(model_path: &Path, step: f64, probe: Vector3<f64>, out: &Path) ->
     }
     let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
-    writeln!(w, "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,e_norm_m,u95_m,determined")?;
+    writeln!(w, "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,e_norm_m,u95_m,determined,interpolated")?;
     let pb = bar(pts.len() as u64, "mapping");
     let mut undetermined = 0;
     for x in &pts {
         let pe = predict::predict(model, &unc, x, &probe);
         let values = if pe.is_determined() {
             let e = model.error(x, &probe);
-            format!("{},{},{},{},{},1", e.x, e.y, e.z, e.norm(), pe.u95())
+            format!("{},{},{},{},{},1,{}", e.x, e.y, e.z, e.norm(), pe.u95(), pe.interpolated as u8)
         } else {
             undetermined += 1;
-            ",,,,,0".to_string()
+            format!(",,,,,0,{}", pe.interpolated as u8)
         };
         writeln!(w, "{},{},{},{},{},{},{values}", x.x, x.y, x.z, probe.x, probe.y, probe.z)?;
         pb.inc(1);

@@ -113,6 +113,32 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
     (out, ext)
 }
 
+/// Where the map is interpolated between the measured positions of an axis, in words (empty when
+/// the readings resolve every axis everywhere).
+pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
+    let axes: Vec<String> = Axis::ALL
+        .iter()
+        .filter_map(|&a| match &unc.resolution[a.index()] {
+            predict::AxisResolution::AtPositions { positions, .. } => {
+                let step = if positions.len() > 1 {
+                    (positions[positions.len() - 1] - positions[0]) / (positions.len() - 1) as f64
+                } else {
+                    0.0
+                };
+                Some(format!("{} ({} positions, about {:.0} mm apart)", a.letter(), positions.len(), step * 1e3))
+            }
+            predict::AxisResolution::Everywhere => None,
+        })
+        .collect();
+    if axes.is_empty() {
+        return String::new();
+    }
+    format!(
+        "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1).\n",
+        axes.join(", ")
+    )
+}
+
 /// What to measure so that the data determine the volumetric error at probe offset `p`: the
 /// functions the undetermined directions involve there, and where along their axes.
 pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>) -> String {

@@ -85,6 +85,7 @@ pub fn summary(model: &ErrorModel, unc: &Uncertainty<'_>, file: &ModelFile, offs
     out.push('\n');
     let offsets = if offsets.is_empty() { vec![Vector3::zeros()] } else { offsets.to_vec() };
     out.push_str(&report::max_error_lines(model, unc, &offsets).0);
+    out.push_str(&report::interpolation_line(unc));
     if let Some(r) = &file.residuals {
         let worst = r.lines.iter().max_by(|a, b| a.rms_m.total_cmp(&b.rms_m));
         out.push_str(&format!(

@@ -465,6 +465,19 @@ impl<'a> Fit<'a> {
 
     /// [`Fit::score`] restricted to the groups where `mask[group]` is true (cross-validation).
     pub fn score_masked(&self, effect: &dyn Effect, mask: Option<&[bool]>) -> Score {
+        let k = effect.param_names().len();
+        self.score_parts(effect, mask, &[0..k]).pop().expect("one part")
+    }
+
+    /// Tests each part of `effect`'s parameters (ranges of its columns) as a separate
+    /// extension of the fitted model, with one pass over the readings: what several
+    /// [`Fit::score`] calls on effects made of those parts would give.
+    pub fn score_parts(
+        &self,
+        effect: &dyn Effect,
+        mask: Option<&[bool]>,
+        parts: &[std::ops::Range<usize>],
+    ) -> Vec<Score> {
         let p = &self.prob;
         let s = &self.state;
         let rows = self.rows.get_or_init(|| ModelRows::new(p, s));
@@ -554,9 +567,14 @@ impl<'a> Fit<'a> {
             }
             sgn.clear();
         }
-        let b = Mat::from_fn(n, k, |i, j| b[i * k + j]);
-        let g2 = Mat::from_fn(k, k, |i, j| g2[i * k + j]);
-        self.schur_score(&b, &g2, &c)
+        parts
+            .iter()
+            .map(|r| {
+                let b = Mat::from_fn(n, r.len(), |i, j| b[i * k + r.start + j]);
+                let g2 = Mat::from_fn(r.len(), r.len(), |i, j| g2[(r.start + i) * k + r.start + j]);
+                self.schur_score(&b, &g2, &c[r.clone()])
+            })
+            .collect()
     }
 
     /// Solves the Schur complement of the fitted model for an extension with cross products
@@ -822,14 +840,7 @@ pub fn fit<'a>(
             normal = assemble(&prob, &state);
             scale = column_scale(&normal.n);
             z = NullSpace::new(&stack_rows(&cons, w), &scale);
-            let factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
-                .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
-            let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
-            lm = LmRun {
-                iterations: lm.iterations + again.iterations,
-                warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
-                ..again
-            };
+            lm = lm.and_again(&prob, &mut state, &mut normal, &z, &scale, opts, nonlinear)?;
             for w in &ident_f.report.warnings {
                 if !warnings.contains(w) {
                     warnings.push(w.clone());
@@ -852,14 +863,7 @@ pub fn fit<'a>(
                 };
                 reml_round(&mut prob, &mut state, &n_data, &normal, &z, &scale, &mut reml_log);
                 normal = Normal { n: n_data, ..gradient(&prob, &state) };
-                let factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
-                    .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
-                let again = levenberg_marquardt(&prob, &mut state, &mut normal, &z, &scale, factor, opts, nonlinear);
-                lm = LmRun {
-                    iterations: lm.iterations + again.iterations,
-                    warnings: lm.warnings.into_iter().chain(again.warnings).collect(),
-                    ..again
-                };
+                lm = lm.and_again(&prob, &mut state, &mut normal, &z, &scale, opts, nonlinear)?;
                 let after = prob.penalty.as_ref().map(|p| p.lambda.clone()).unwrap_or_default();
                 let moved = before.iter().zip(&after).map(|(a, b)| (a.ln() - b.ln()).abs()).fold(0.0, f64::max);
                 if moved < 0.23 {
@@ -880,9 +884,7 @@ pub fn fit<'a>(
     // by a relative amount of the same order, far below the precision to which it is reported.
     let final_res = Residuals { residual: normal.res.residual.clone(), origin: normal.res.origin.clone() };
     if nonlinear || damped {
-        // At the solution, undamped; a tiny damping if rounding makes it indefinite.
-        factor = Reduced::new(&prob, &normal, &z, &scale, 0.0)
-            .or_else(|_| Reduced::new(&prob, &normal, &z, &scale, 1e-12))?;
+        factor = Reduced::at_solution(&prob, &normal, &z, &scale)?;
     }
     let mut inverse = factor.llt.inverse();
     // Smoothing parameters estimated from the readings carry uncertainty of their own.
@@ -1149,6 +1151,30 @@ struct LmRun {
     warnings: Vec<String>,
     /// Whether it ended as damped Levenberg-Marquardt (`factor` is then not at the solution).
     damped: bool,
+}
+
+impl LmRun {
+    /// This run followed by another from `state` (after its constraints or smoothing changed),
+    /// with a fresh factor of `normal`: iterations and warnings of both.
+    #[allow(clippy::too_many_arguments)]
+    fn and_again(
+        self,
+        prob: &Problem<'_>,
+        state: &mut State,
+        normal: &mut Normal,
+        z: &NullSpace,
+        scale: &[f64],
+        opts: &SolveOptions,
+        nonlinear: bool,
+    ) -> Result<LmRun, SolveError> {
+        let factor = Reduced::at_solution(prob, normal, z, scale)?;
+        let again = levenberg_marquardt(prob, state, normal, z, scale, factor, opts, nonlinear);
+        Ok(LmRun {
+            iterations: self.iterations + again.iterations,
+            warnings: self.warnings.into_iter().chain(again.warnings).collect(),
+            ..again
+        })
+    }
 }
 
 /// Gauss-Newton (beams) or Levenberg-Marquardt (ranges) iterations in the null space `z` of the
@@ -1732,6 +1758,11 @@ impl Reduced {
     /// Factor of the reduced matrix of `normal` with the penalty of `prob` and damping `mu`.
     fn new(prob: &Problem<'_>, normal: &Normal, z: &NullSpace, scale: &[f64], mu: f64) -> Result<Reduced, SolveError> {
         Reduced::from_matrix(reduced_matrix(normal, z, scale, prob.penalty.as_ref()), mu)
+    }
+
+    /// Undamped, at a solution; a tiny damping if rounding makes it indefinite.
+    fn at_solution(prob: &Problem<'_>, normal: &Normal, z: &NullSpace, scale: &[f64]) -> Result<Reduced, SolveError> {
+        Reduced::new(prob, normal, z, scale, 0.0).or_else(|_| Reduced::new(prob, normal, z, scale, 1e-12))
     }
 
     fn from_matrix(mut m: Mat<f64>, mu: f64) -> Result<Reduced, SolveError> {

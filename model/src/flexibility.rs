@@ -252,8 +252,10 @@ pub fn solve_auto(
         }
         let mut refined = false;
         if round < REFINE_ROUNDS {
+            // The axes that may still be refined, tested together in one pass over the readings.
+            let mut parts: Vec<(Axis, usize, Refinement)> = Vec::new();
             for a in Axis::ALL {
-                let k = &mut knots[a.index()];
+                let k = &knots[a.index()];
                 let most = bound[a.index()].0;
                 let functions: Vec<ErrorFunction> = (0..6)
                     .map(|m| ErrorFunction::from_index(a.index() * 6 + m))
@@ -264,18 +266,18 @@ pub fn solve_auto(
                 }
                 let to = (2 * k.intervals).min(most);
                 let [lo, hi] = travel.range(a);
-                let ext = Refinement {
-                    topology: topology.clone(),
-                    axis: a,
-                    basis: Basis::new(Representation::BSpline { intervals: to }, lo, hi),
-                    functions,
-                };
-                let sc = f.score(&ext);
+                let basis = Basis::new(Representation::BSpline { intervals: to }, lo, hi);
+                parts.push((a, to, Refinement { topology: topology.clone(), axis: a, basis, functions }));
+            }
+            let ext = Refinements::new(parts.iter().map(|(_, _, r)| r).collect());
+            let scores = f.score_parts(&ext, None, &ext.ranges);
+            for ((a, to, _), sc) in parts.iter().zip(scores) {
+                let k = &mut knots[a.index()];
                 let p = refinement_p(sc.delta_chi2, sc.rank, &f.solution().stats);
                 let take = p < REFINE_P;
                 k.tests.push(RefinementTest {
                     from: k.intervals,
-                    to,
+                    to: *to,
                     delta_chi2: sc.delta_chi2,
                     dof: sc.rank,
                     p_value: p,
@@ -283,7 +285,7 @@ pub fn solve_auto(
                     determined: true,
                 });
                 if take {
-                    k.intervals = to;
+                    k.intervals = *to;
                     refined = true;
                 }
             }
@@ -370,6 +372,50 @@ struct Refinement {
     axis: Axis,
     basis: Basis,
     functions: Vec<ErrorFunction>,
+}
+
+impl Refinement {
+    fn n_params(&self) -> usize {
+        self.functions.len() * (self.basis.n_coeffs() / 2)
+    }
+}
+
+/// Several axes' [`Refinement`]s as one extension, their parameters side by side (`ranges`:
+/// the columns of each).
+struct Refinements<'a> {
+    parts: Vec<&'a Refinement>,
+    ranges: Vec<std::ops::Range<usize>>,
+}
+
+impl<'a> Refinements<'a> {
+    fn new(parts: Vec<&'a Refinement>) -> Refinements<'a> {
+        let mut start = 0;
+        let ranges = parts
+            .iter()
+            .map(|r| {
+                let range = start..start + r.n_params();
+                start = range.end;
+                range
+            })
+            .collect();
+        Refinements { parts, ranges }
+    }
+}
+
+impl Effect for Refinements<'_> {
+    fn id(&self) -> &str {
+        "refinements"
+    }
+
+    fn param_names(&self) -> Vec<String> {
+        self.parts.iter().flat_map(|r| r.param_names()).collect()
+    }
+
+    fn regressors(&self, ctx: &ObsContext<'_>, out: &mut [f64]) {
+        for (r, range) in self.parts.iter().zip(&self.ranges) {
+            r.regressors(ctx, &mut out[range.clone()]);
+        }
+    }
 }
 
 impl Effect for Refinement {

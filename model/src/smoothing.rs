@@ -481,7 +481,7 @@ pub const DETAIL_FLOOR: f64 = 1.0;
 /// Range of `log lambda` explored around the starting value (a factor e^25, about 7e10).
 const RHO_SPAN: f64 = 25.0;
 /// Newton stops when every gradient component is below this (in nats of the REML criterion).
-const GRAD_TOL: f64 = 1e-2;
+const GRAD_TOL: f64 = 5e-2;
 
 /// State of the criterion at one `rho`.
 struct Eval {
@@ -547,7 +547,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     for it in 0..max_iter {
         iterations = it + 1;
         let lambda = lam(&rho);
-        let d = Derivatives::at(rp, &lambda, cur.llt.L(), &cur.y, &cur.e);
+        let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
         t.copy_from_slice(&d.t);
         for g in 0..ng {
             grad[g] = if active[g] { 0.5 * (lambda[g] * cur.e[g] + lambda[g] * t[g] - rp.rank[g] as f64) } else { 0.0 };
@@ -611,7 +611,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut lambda = lam(&rho);
     let mut at_upper = vec![false; ng];
     for _ in 0..8 {
-        let d = Derivatives::at(rp, &lambda, cur.llt.L(), &cur.y, &cur.e);
+        let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
         let mut changed = false;
         for g in (0..ng).filter(|&g| active[g]) {
             let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
@@ -634,35 +634,60 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
 /// What the gradient and Hessian of the REML criterion need at one point: `G_g = L^-1 B_g^T`,
 /// `t_g = tr(M^-1 P_g)`, and `w_g = L^-1 Z^T D^-1 S_g beta` (the reduced `S_g beta`).
 struct Derivatives {
-    gmat: Vec<Mat<f64>>,
+    /// Columns of each group in `g`.
+    cols: Vec<std::ops::Range<usize>>,
+    /// `G^T G` for `G = L^-1 [B_1^T .. B_n^T]`.
+    gram: Mat<f64>,
     t: Vec<f64>,
-    w: Vec<Mat<f64>>,
+    /// `L^-1 [w_1 .. w_n]`.
+    w: Mat<f64>,
 }
 
 impl Derivatives {
-    /// At the estimate `y` (reduced step from `u0`) with penalty energies `e`, Cholesky factor `l`.
-    fn at(rp: &ReducedPenalty, _lambda: &[f64], l: faer::MatRef<'_, f64>, y: &Mat<f64>, _e: &[f64]) -> Derivatives {
-        let solve = |mut x: Mat<f64>| {
-            faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, x.as_mut(), faer::Par::Seq);
-            x
-        };
-        let gmat: Vec<Mat<f64>> = rp.bt.iter().map(|b| solve(b.clone())).collect();
-        let t = gmat.iter().map(|g| g.squared_norm_l2()).collect();
-        let w = (0..rp.n_groups()).map(|g| solve(&rp.p[g] * y + &rp.h[g])).collect();
-        Derivatives { gmat, t, w }
+    /// At the estimate `y` (reduced step from `u0`), with `l` the Cholesky factor there.
+    fn at(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>, y: &Mat<f64>) -> Derivatives {
+        let nr = l.nrows();
+        let ng = rp.n_groups();
+        let mut cols = Vec::with_capacity(ng);
+        let mut start = 0;
+        for b in &rp.bt {
+            cols.push(start..start + b.ncols());
+            start += b.ncols();
+        }
+        // One triangular solve and one product for all groups.
+        let mut g = Mat::<f64>::zeros(nr, start);
+        for (b, c) in rp.bt.iter().zip(&cols) {
+            g.subcols_mut(c.start, c.len()).copy_from(b);
+        }
+        let mut w = Mat::<f64>::zeros(nr, ng);
+        for k in 0..ng {
+            let v = &rp.p[k] * y + &rp.h[k];
+            w.col_mut(k).copy_from(v.col(0));
+        }
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, g.as_mut(), faer::Par::Seq);
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, w.as_mut(), faer::Par::Seq);
+        let gram = g.transpose() * &g;
+        let t = cols.iter().map(|c| c.clone().map(|i| gram[(i, i)]).sum()).collect();
+        Derivatives { cols, gram, t, w }
     }
 
     /// Hessian of `V` with respect to `log lambda` over the groups `free` (Wood 2011):
     /// `H_gh = delta_gh lambda_g (e_g + t_g) / 2 - lambda_g lambda_h (w_g . w_h)
-    ///  - lambda_g lambda_h tr(M^-1 P_g M^-1 P_h) / 2`.
+    ///  - lambda_g lambda_h tr(M^-1 P_g M^-1 P_h) / 2`, the trace being the squared norm of
+    /// the `(g, h)` block of `G^T G`.
     fn hessian(&self, lambda: &[f64], e: &[f64], free: &[usize]) -> Mat<f64> {
         let k = free.len();
+        let ww = self.w.transpose() * &self.w;
         let mut h = Mat::<f64>::zeros(k, k);
         for (a, &g) in free.iter().enumerate() {
             for (b, &hh) in free.iter().enumerate().skip(a) {
-                let tgh = (self.gmat[g].transpose() * &self.gmat[hh]).squared_norm_l2();
-                let wgh: f64 = (0..self.w[g].nrows()).map(|i| self.w[g][(i, 0)] * self.w[hh][(i, 0)]).sum();
-                let mut v = -lambda[g] * lambda[hh] * wgh - 0.5 * lambda[g] * lambda[hh] * tgh;
+                let mut tgh = 0.0;
+                for i in self.cols[g].clone() {
+                    for j in self.cols[hh].clone() {
+                        tgh += self.gram[(i, j)] * self.gram[(i, j)];
+                    }
+                }
+                let mut v = -lambda[g] * lambda[hh] * ww[(g, hh)] - 0.5 * lambda[g] * lambda[hh] * tgh;
                 if a == b {
                     v += 0.5 * lambda[g] * (e[g] + self.t[g]);
                 }
@@ -692,7 +717,7 @@ pub(crate) fn lambda_covariance(
     let nr = l.nrows();
     let y = Mat::<f64>::zeros(nr, 1);
     let e = rp.e0.clone();
-    let d = Derivatives::at(rp, lambda, l, &y, &e);
+    let d = Derivatives::at(rp, l, &y);
     let free: Vec<usize> = (0..ng).filter(|&g| rp.rank[g] > 0 && !at_upper.get(g).copied().unwrap_or(false)).collect();
     if free.is_empty() {
         return None;
@@ -705,7 +730,7 @@ pub(crate) fn lambda_covariance(
     // J, n_red x k: J_g = -lambda_g L^-T w_g.
     let mut j = Mat::<f64>::zeros(nr, k);
     for (c, &g) in free.iter().enumerate() {
-        let mut x = d.w[g].clone();
+        let mut x = d.w.col(g).as_mat().to_owned();
         faer::linalg::triangular_solve::solve_upper_triangular_in_place(l.transpose(), x.as_mut(), faer::Par::Seq);
         for i in 0..nr {
             j[(i, c)] = -lambda[g] * x[(i, 0)];
