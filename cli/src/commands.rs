@@ -127,7 +127,7 @@ pub fn solve_cmd(campaign_path: &Path, machine_path: &Path, out: &Path) -> Resul
     eprintln!(
         "solved {} readings, {} parameters in {:.1} ms ({} iterations)",
         solved.prepared.obs.len(),
-        solved.machine.layout.n_params,
+        solved.solution.model.layout.n_params,
         dt.as_secs_f64() * 1e3,
         solved.solution.iterations
     );
