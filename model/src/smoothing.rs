@@ -13,6 +13,9 @@
 //! gauge-constrained subspace) is the uncertainty reported: it includes what the prior leaves
 //! open between the readings, which is why it covers the truth where a representation error
 //! would otherwise hide (Nychka 1988: across-the-function coverage of the Bayesian intervals).
+//! To it is added the uncertainty of the smoothing parameters themselves
+//! ([`lambda_covariance`]), and no function is made stiffer than [`DETAIL_FLOOR`]: both matter
+//! where the readings say little about a function's smoothness.
 //!
 //! REML works on the quadratic model of the fit around the current estimate, in the reduced
 //! (gauge-constrained, Jacobi-scaled) coordinates of the estimator: with `M_d` the data's
