@@ -133,7 +133,7 @@ pub struct ObsContext<'a> {
 
 /// A physical effect outside the rigid-body model, linear in its parameters: it adds
 /// `sum_k x_k g_k(reading)` to the predicted reading. The diagnosis catalogue implements these.
-pub trait Effect {
+pub trait Effect: Sync {
     /// Stable id, e.g. `setup_drift`.
     fn id(&self) -> &str;
     /// Names of the parameters (with units), e.g. `drift_x_m_per_s`.
@@ -363,7 +363,7 @@ pub struct Fit<'a> {
     factor: Reduced,
     scale: Vec<f64>,
     solution: Solution,
-    rows: std::cell::OnceCell<ModelRows>,
+    rows: std::sync::OnceLock<ModelRows>,
 }
 
 /// Score (nested-model) test of an [`Effect`] against a [`Fit`]: what adding its parameters to
@@ -483,90 +483,28 @@ impl<'a> Fit<'a> {
         let rows = self.rows.get_or_init(|| ModelRows::new(p, s));
         let n = p.dims.n();
         let k = effect.param_names().len();
-        // Row-major n x k and k x k accumulators as plain slices: the inner loops run over every
-        // reading's model row and, within it, the extension's non-zero regressors.
-        let mut b = vec![0.0; n * k];
-        let mut g2 = vec![0.0; k * k];
-        let mut c = vec![0.0; k];
-        let mut reg = vec![0.0; k];
-        let mut nz: Vec<usize> = Vec::new();
-        let mut wreg: Vec<f64> = Vec::new();
-        let mut sa = vec![0.0; n];
-        let mut sg = vec![0.0; k];
-        let mut touched: Vec<usize> = Vec::new();
-        let mut is_touched = vec![false; n];
-        let mut sgn: Vec<usize> = Vec::new();
-        let mut is_sgn = vec![false; k];
-        for (gi, g) in p.obs.groups.iter().enumerate() {
-            if mask.is_some_and(|m| !m[gi]) {
-                continue;
-            }
-            let mut wsum = 0.0;
-            for i in g.range() {
-                let w = 1.0 / (p.sigma[i] * p.sigma[i]);
-                wsum += w;
-                let (ri, rv) = rows.row(i);
-                for (&col, &v) in ri.iter().zip(rv) {
-                    if !is_touched[col] {
-                        is_touched[col] = true;
-                        touched.push(col);
-                    }
-                    sa[col] += w * v;
-                }
-                let ctx = ObsContext { obs: p.obs, i, group: g, direction: rows.dirs[i], actual: s.actual[i] };
-                reg.iter_mut().for_each(|v| *v = 0.0);
-                effect.regressors(&ctx, &mut reg);
-                nz.clear();
-                nz.extend((0..k).filter(|&j| reg[j] != 0.0));
-                if nz.is_empty() {
-                    continue;
-                }
-                wreg.clear();
-                wreg.extend(nz.iter().map(|&j| w * reg[j]));
-                let r = self.solution.residuals[i];
-                for (&j, &wr) in nz.iter().zip(&wreg) {
-                    if !is_sgn[j] {
-                        is_sgn[j] = true;
-                        sgn.push(j);
-                    }
-                    sg[j] += wr;
-                    c[j] += wr * r;
-                    let gj = &mut g2[j * k..(j + 1) * k];
-                    for &l in &nz {
-                        gj[l] += wr * reg[l];
-                    }
-                }
-                for (&col, &v) in ri.iter().zip(rv) {
-                    let bc = &mut b[col * k..(col + 1) * k];
-                    for (&j, &wr) in nz.iter().zip(&wreg) {
-                        bc[j] += wr * v;
-                    }
-                }
-            }
-            // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
-            for &col in &touched {
-                let f = sa[col] / wsum;
-                let bc = &mut b[col * k..(col + 1) * k];
-                for &j in &sgn {
-                    bc[j] -= f * sg[j];
-                }
-                sa[col] = 0.0;
-                is_touched[col] = false;
-            }
-            for &j in &sgn {
-                let f = sg[j] / wsum;
-                let gj = &mut g2[j * k..(j + 1) * k];
-                for &l in &sgn {
-                    gj[l] -= sg[l] * f;
-                }
-            }
-            touched.clear();
-            for &j in &sgn {
-                sg[j] = 0.0;
-                is_sgn[j] = false;
-            }
-            sgn.clear();
+        // The groups in two halves of about equal readings, accumulated side by side and added
+        // in a fixed order: the same sums whatever the machine.
+        let groups: Vec<usize> = (0..p.obs.groups.len()).filter(|&gi| mask.is_none_or(|m| m[gi])).collect();
+        let total: usize = groups.iter().map(|&gi| p.obs.groups[gi].len()).sum();
+        let mut cut = 0;
+        let mut seen = 0;
+        while cut < groups.len() && 2 * seen < total {
+            seen += p.obs.groups[groups[cut]].len();
+            cut += 1;
         }
+        let (first, second) = groups.split_at(cut);
+        let acc = |gs: &[usize]| ScoreSums::over(self, rows, effect, gs, n, k, parts);
+        let (mut sums, other) = if total >= 2_000 {
+            std::thread::scope(|sc| {
+                let h = sc.spawn(|| acc(second));
+                (acc(first), h.join().expect("the accumulation does not panic"))
+            })
+        } else {
+            (acc(first), acc(second))
+        };
+        sums.add(&other);
+        let ScoreSums { b, g2, c } = sums;
         parts
             .iter()
             .map(|r| {
@@ -599,17 +537,12 @@ impl<'a> Fit<'a> {
             if let Ok(eig) = sn.self_adjoint_eigen(Side::Lower) {
                 let lam: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
                 let lmax = lam.iter().cloned().fold(0.0, f64::max);
+                let kept: Vec<usize> = (0..k).filter(|&m| lam[m] > 1e-9 * lmax.max(f64::MIN_POSITIVE)).collect();
+                rank = kept.len();
                 let u = eig.U();
-                for (m, &l) in lam.iter().enumerate() {
-                    if l > 1e-9 * lmax.max(f64::MIN_POSITIVE) {
-                        rank += 1;
-                        for i in 0..k {
-                            for j in 0..k {
-                                pinv[(i, j)] += u[(i, m)] * u[(j, m)] / l;
-                            }
-                        }
-                    }
-                }
+                let uk = Mat::from_fn(k, rank, |i, j| u[(i, kept[j])]);
+                let us = Mat::from_fn(k, rank, |i, j| u[(i, kept[j])] / lam[kept[j]]);
+                pinv = us * uk.transpose();
             }
         }
         let pinv = Mat::from_fn(k, k, |i, j| pinv[(i, j)] / (d[i] * d[j]));
@@ -621,8 +554,144 @@ impl<'a> Fit<'a> {
     }
 }
 
-/// The model rows of every reading at a fit's solution, kept for repeated extension tests.
+/// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:
+/// `b` (model x extension, row-major `n x k`), `g2` (extension x extension, row-major `k x k`,
+/// within each part only) and the gradient `c`, each group's origin eliminated.
+struct ScoreSums {
+    b: Vec<f64>,
+    g2: Vec<f64>,
+    c: Vec<f64>,
+}
+
+impl ScoreSums {
+    #[allow(clippy::too_many_arguments)]
+    fn over(
+        fit: &Fit<'_>,
+        rows: &ModelRows,
+        effect: &dyn Effect,
+        groups: &[usize],
+        n: usize,
+        k: usize,
+        parts: &[std::ops::Range<usize>],
+    ) -> ScoreSums {
+        let p = &fit.prob;
+        let mut b = vec![0.0; n * k];
+        let mut g2 = vec![0.0; k * k];
+        let mut c = vec![0.0; k];
+        let mut reg = vec![0.0; k];
+        // Part of each extension column (columns outside every part: none).
+        let mut part_of = vec![usize::MAX; k];
+        for (q, r) in parts.iter().enumerate() {
+            part_of[r.clone()].iter_mut().for_each(|x| *x = q);
+        }
+        let mut nz: Vec<usize> = Vec::new();
+        let mut wreg: Vec<f64> = Vec::new();
+        let mut sa = vec![0.0; n];
+        let mut sg = vec![0.0; k];
+        let mut touched: Vec<usize> = Vec::new();
+        let mut is_touched = vec![false; n];
+        let mut sgn: Vec<usize> = Vec::new();
+        let mut is_sgn = vec![false; k];
+        for &gi in groups {
+            let g = &p.obs.groups[gi];
+            let mut wsum = 0.0;
+            for i in g.range() {
+                let w = 1.0 / (p.sigma[i] * p.sigma[i]);
+                wsum += w;
+                let (ri, rv) = rows.row(i);
+                for (&col, &v) in ri.iter().zip(rv) {
+                    if !is_touched[col] {
+                        is_touched[col] = true;
+                        touched.push(col);
+                    }
+                    sa[col] += w * v;
+                }
+                let ctx =
+                    ObsContext { obs: p.obs, i, group: g, direction: rows.direction(i), actual: fit.state.actual[i] };
+                reg.iter_mut().for_each(|v| *v = 0.0);
+                effect.regressors(&ctx, &mut reg);
+                nz.clear();
+                nz.extend((0..k).filter(|&j| reg[j] != 0.0));
+                if nz.is_empty() {
+                    continue;
+                }
+                wreg.clear();
+                wreg.extend(nz.iter().map(|&j| w * reg[j]));
+                let r = fit.solution.residuals[i];
+                // `nz` is sorted and the parts are ranges: each part's columns are a run of it.
+                let mut run = 0;
+                while run < nz.len() {
+                    let q = part_of[nz[run]];
+                    let end = nz[run..].iter().position(|&j| part_of[j] != q).map_or(nz.len(), |e| run + e);
+                    let (js, ws) = (&nz[run..end], &wreg[run..end]);
+                    for (&j, &wr) in js.iter().zip(ws) {
+                        if !is_sgn[j] {
+                            is_sgn[j] = true;
+                            sgn.push(j);
+                        }
+                        sg[j] += wr;
+                        c[j] += wr * r;
+                        if q != usize::MAX {
+                            let gj = &mut g2[j * k..(j + 1) * k];
+                            for &l in js {
+                                gj[l] += wr * reg[l];
+                            }
+                        }
+                    }
+                    run = end;
+                }
+                for (&col, &v) in ri.iter().zip(rv) {
+                    let bc = &mut b[col * k..(col + 1) * k];
+                    for (&j, &wr) in nz.iter().zip(&wreg) {
+                        bc[j] += wr * v;
+                    }
+                }
+            }
+            // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
+            for &col in &touched {
+                let f = sa[col] / wsum;
+                let bc = &mut b[col * k..(col + 1) * k];
+                for &j in &sgn {
+                    bc[j] -= f * sg[j];
+                }
+                sa[col] = 0.0;
+                is_touched[col] = false;
+            }
+            for &j in &sgn {
+                let f = sg[j] / wsum;
+                let gj = &mut g2[j * k..(j + 1) * k];
+                for &l in &sgn {
+                    if part_of[l] == part_of[j] && part_of[j] != usize::MAX {
+                        gj[l] -= sg[l] * f;
+                    }
+                }
+            }
+            touched.clear();
+            for &j in &sgn {
+                sg[j] = 0.0;
+                is_sgn[j] = false;
+            }
+            sgn.clear();
+        }
+        ScoreSums { b, g2, c }
+    }
+
+    fn add(&mut self, other: &ScoreSums) {
+        for (a, b) in [(&mut self.b, &other.b), (&mut self.g2, &other.g2), (&mut self.c, &other.c)] {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+    }
+}
+
+/// The model rows of every reading at a fit's solution, kept for repeated extension tests: two
+/// halves of the readings (stored in group order), computed side by side.
 struct ModelRows {
+    halves: [RowBlock; 2],
+}
+
+/// The rows of consecutive readings from `first` on.
+struct RowBlock {
+    first: usize,
     start: Vec<usize>,
     idx: Vec<usize>,
     val: Vec<f64>,
@@ -631,24 +700,60 @@ struct ModelRows {
 
 impl ModelRows {
     fn new(p: &Problem<'_>, s: &State) -> ModelRows {
+        let ng = p.obs.groups.len();
+        let half = p.obs.len() / 2;
+        let cut = p.obs.groups.iter().position(|g| g.range().start >= half).unwrap_or(ng);
+        let halves = if p.obs.len() >= 2_000 {
+            std::thread::scope(|sc| {
+                let h = sc.spawn(|| RowBlock::of(p, s, cut..ng));
+                [RowBlock::of(p, s, 0..cut), h.join().expect("the model rows do not panic")]
+            })
+        } else {
+            [RowBlock::of(p, s, 0..cut), RowBlock::of(p, s, cut..ng)]
+        };
+        ModelRows { halves }
+    }
+
+    fn block(&self, i: usize) -> (&RowBlock, usize) {
+        let b = if i >= self.halves[1].first { &self.halves[1] } else { &self.halves[0] };
+        (b, i - b.first)
+    }
+
+    fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        let (b, k) = self.block(i);
+        (&b.idx[b.start[k]..b.start[k + 1]], &b.val[b.start[k]..b.start[k + 1]])
+    }
+
+    fn direction(&self, i: usize) -> Vector3<f64> {
+        let (b, k) = self.block(i);
+        b.dirs[k]
+    }
+}
+
+impl RowBlock {
+    /// The rows of the readings of `groups`, in order.
+    fn of(p: &Problem<'_>, s: &State, groups: std::ops::Range<usize>) -> RowBlock {
+        let first = p.obs.groups.get(groups.start).map_or(p.obs.len(), |g| g.range().start);
+        let readings: usize = groups.clone().map(|gi| p.obs.groups[gi].len()).sum();
         let (mut idx, mut val, mut ebuf) = (Vec::new(), Vec::new(), Vec::new());
-        let mut out =
-            ModelRows { start: vec![0], idx: Vec::new(), val: Vec::new(), dirs: vec![Vector3::zeros(); p.obs.len()] };
-        for (gi, g) in p.obs.groups.iter().enumerate() {
-            for i in g.range() {
+        let mut out = RowBlock { first, start: vec![0], idx: Vec::new(), val: Vec::new(), dirs: Vec::new() };
+        out.start.reserve(readings);
+        out.dirs.reserve(readings);
+        for gi in groups {
+            for i in p.obs.groups[gi].range() {
                 let (_, dir) = row(p, s, gi, i, &mut idx, &mut val, &mut ebuf);
-                out.dirs[i] = dir;
+                if out.idx.is_empty() {
+                    // Rows are about equally long: room for all at once.
+                    out.idx.reserve(idx.len() * readings + readings);
+                    out.val.reserve(idx.len() * readings + readings);
+                }
+                out.dirs.push(dir);
                 out.idx.extend_from_slice(&idx);
                 out.val.extend_from_slice(&val);
                 out.start.push(out.idx.len());
             }
         }
-        // Readings are stored in group order, which is reading order within Observations.
         out
-    }
-
-    fn row(&self, i: usize) -> (&[usize], &[f64]) {
-        (&self.idx[self.start[i]..self.start[i + 1]], &self.val[self.start[i]..self.start[i + 1]])
     }
 }
 
@@ -993,7 +1098,7 @@ pub fn fit<'a>(
         gauge: opts.gauge,
         warnings,
     };
-    Ok(Fit { prob, state, z, factor, scale, solution, rows: std::cell::OnceCell::new() })
+    Ok(Fit { prob, state, z, factor, scale, solution, rows: std::sync::OnceLock::new() })
 }
 
 /// What REML did over its rounds.

@@ -415,22 +415,36 @@ impl ReducedPenalty {
         let mut h = Vec::with_capacity(ng);
         let mut rank = Vec::with_capacity(ng);
         let e0 = pen.energies(u0);
+        // Every group's columns through `zt` at once, then split.
+        let groups: Vec<Mat<f64>> = (0..ng).map(|g| pen.factor_columns(g, n, scale)).collect();
+        let widths: Vec<usize> = groups.iter().map(|c| c.ncols()).collect();
+        let all = zt(&Mat::from_fn(n, widths.iter().sum(), |i, j| {
+            let (mut g, mut j) = (0, j);
+            while j >= widths[g] {
+                j -= widths[g];
+                g += 1;
+            }
+            groups[g][(i, j)]
+        }));
+        let mut start = 0;
         for g in 0..ng {
-            let b = zt(&pen.factor_columns(g, n, scale));
+            let b = all.subcols(start, widths[g]).to_owned();
+            start += widths[g];
             rank.push(rank_of(&b));
             p.push(&b * b.transpose());
             bt.push(b);
-            // S_g u0, then D^-1 and Z^T.
-            let mut su = Mat::<f64>::zeros(n, 1);
-            for blk in pen.blocks.iter().filter(|blk| blk.group == g) {
-                let k = blk.s.nrows();
-                for i in 0..k {
-                    let v: f64 = (0..k).map(|j| blk.s[(i, j)] * u0[blk.offset + j]).sum();
-                    su[(blk.offset + i, 0)] = v / scale[blk.offset + i];
-                }
-            }
-            h.push(zt(&su));
         }
+        // S_g u0 per group, then D^-1 and Z^T (all groups at once).
+        let mut su = Mat::<f64>::zeros(n, ng);
+        for blk in &pen.blocks {
+            let k = blk.s.nrows();
+            for i in 0..k {
+                let v: f64 = (0..k).map(|j| blk.s[(i, j)] * u0[blk.offset + j]).sum();
+                su[(blk.offset + i, blk.group)] = v / scale[blk.offset + i];
+            }
+        }
+        let su = zt(&su);
+        h.extend((0..ng).map(|g| su.subcols(g, 1).to_owned()));
         ReducedPenalty { bt, p, h, e0, rank }
     }
 
@@ -503,27 +517,27 @@ fn evaluate(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda: &[f64]) -> Option<Ev
         let l = lambda[g];
         let pg = &rp.p[g];
         for j in 0..m.ncols() {
-            for i in 0..m.nrows() {
-                m[(i, j)] += l * pg[(i, j)];
-            }
-            rhs[(j, 0)] -= l * rp.h[g][(j, 0)];
+            m.col_as_slice_mut(j).iter_mut().zip(pg.col_as_slice(j)).for_each(|(a, b)| *a += l * b);
         }
+        rhs.col_as_slice_mut(0).iter_mut().zip(rp.h[g].col_as_slice(0)).for_each(|(a, b)| *a -= l * b);
     }
     let llt = m.llt(Side::Lower).ok()?;
     let mut y = rhs;
     llt.solve_in_place(y.as_mut());
-    let gy: f64 = (0..y.nrows()).map(|i| y[(i, 0)] * q.g_data[(i, 0)]).sum();
-    let mdy = q.m_data * &y;
-    let ymy: f64 = (0..y.nrows()).map(|i| y[(i, 0)] * mdy[(i, 0)]).sum();
+    let dot = |a: &Mat<f64>, b: &Mat<f64>| -> f64 {
+        a.col_as_slice(0).iter().zip(b.col_as_slice(0)).map(|(x, y)| x * y).sum()
+    };
+    let gy = dot(&y, q.g_data);
+    let ymy = dot(&y, &(q.m_data * &y));
     let chi2 = q.chi2 - 2.0 * gy + ymy;
     let mut e = Vec::with_capacity(rp.n_groups());
     let mut pen = 0.0;
     let mut logdet_prior = 0.0;
     for g in 0..rp.n_groups() {
-        let py = &rp.p[g] * &y;
-        let hy: f64 = (0..y.nrows()).map(|i| y[(i, 0)] * rp.h[g][(i, 0)]).sum();
-        let ypy: f64 = (0..y.nrows()).map(|i| y[(i, 0)] * py[(i, 0)]).sum();
-        let eg = (rp.e0[g] + 2.0 * hy + ypy).max(0.0);
+        // `y' P_g y = |B_g y|^2`.
+        let by = rp.bt[g].transpose() * &y;
+        let ypy = by.squared_norm_l2();
+        let eg = (rp.e0[g] + 2.0 * dot(&y, &rp.h[g]) + ypy).max(0.0);
         pen += lambda[g] * eg;
         logdet_prior += rp.rank[g] as f64 * lambda[g].ln();
         e.push(eg);
@@ -664,12 +678,30 @@ impl Derivatives {
         }
         let mut w = Mat::<f64>::zeros(nr, ng);
         for k in 0..ng {
-            let v = &rp.p[k] * y + &rp.h[k];
+            let v = &rp.bt[k] * (rp.bt[k].transpose() * y) + &rp.h[k];
             w.col_mut(k).copy_from(v.col(0));
         }
-        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, g.as_mut(), faer::Par::Seq);
-        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, w.as_mut(), faer::Par::Seq);
-        let gram = g.transpose() * &g;
+        // The columns in two halves side by side (each column's solve, and each entry of the
+        // Gram matrix, is the same whichever half computes it).
+        let half = start / 2;
+        let solve = |m: faer::MatMut<'_, f64>| {
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m, faer::Par::Seq)
+        };
+        std::thread::scope(|sc| {
+            let (a, b) = g.as_mut().split_at_col_mut(half);
+            let h = sc.spawn(|| solve(b));
+            solve(a);
+            solve(w.as_mut());
+            h.join().expect("a triangular solve does not panic");
+        });
+        let gr = g.as_ref();
+        let gram = std::thread::scope(|sc| {
+            let (top, bottom) = (gr.subcols(0, half), gr.subcols(half, start - half));
+            let h = sc.spawn(move || bottom.transpose() * gr);
+            let t = top.transpose() * gr;
+            let b = h.join().expect("a product does not panic");
+            Mat::from_fn(start, start, |i, j| if i < half { t[(i, j)] } else { b[(i - half, j)] })
+        });
         let t = cols.iter().map(|c| c.clone().map(|i| gram[(i, i)]).sum()).collect();
         Derivatives { cols, gram, t, w }
     }
@@ -740,21 +772,11 @@ pub(crate) fn lambda_covariance(
         }
     }
     // J V_rho J^T on the positive part of H (a direction of zero curvature has no estimate).
+    let kept: Vec<usize> = (0..k).filter(|&m| lam_h[m] > 1e-9 * lmax).collect();
     let u = eig.U();
-    let mut out = Mat::<f64>::zeros(nr, nr);
-    for m in 0..k {
-        if !(lam_h[m] > 1e-9 * lmax) {
-            continue;
-        }
-        let jm = &j * u.col(m).as_mat();
-        for b in 0..nr {
-            let vb = jm[(b, 0)] / lam_h[m];
-            for a in 0..nr {
-                out[(a, b)] += jm[(a, 0)] * vb;
-            }
-        }
-    }
-    Some(out)
+    let ju = &j * Mat::from_fn(k, kept.len(), |i, c| u[(i, kept[c])]);
+    let jus = Mat::from_fn(nr, kept.len(), |i, c| ju[(i, c)] / lam_h[kept[c]]);
+    Some(jus * ju.transpose())
 }
 
 /// Starting smoothing parameters: the penalty at 1e-3 of the data's information, per group
