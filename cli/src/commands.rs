@@ -78,14 +78,7 @@ pub fn simulate_cmd(
         opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
     let mut injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
     if let Some((dir, kind)) = &opts.compensation {
-        // The directory's files say which controller: a volumetric grid, or per-joint tables.
-        let grid = dir.join("grid.csv");
-        if grid.exists() {
-            injections.push(Box::new(volcal_formats::compensation_grid::read_grid(&grid).context("--compensation")?));
-        } else {
-            let c = volcal_formats::compensation::read_linuxcnc(dir, *kind).context("--compensation")?;
-            injections.push(Box::new(c));
-        }
+        injections.push(load_compensation(dir, *kind)?);
     }
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");
@@ -103,6 +96,17 @@ pub fn simulate_cmd(
         eprintln!("wrote simulation truth to {}", t.display());
     }
     Ok(())
+}
+
+/// The controller that a compensation directory (`volcal export`'s output) describes: a
+/// volumetric grid when it holds `grid.csv`, else LinuxCNC per-joint tables of `kind`.
+pub fn load_compensation(dir: &Path, kind: volcal_formats::compensation::CompFileType) -> Result<Box<dyn Injection>> {
+    let grid = dir.join("grid.csv");
+    Ok(if grid.exists() {
+        Box::new(volcal_formats::compensation_grid::read_grid(&grid).context("--compensation")?)
+    } else {
+        Box::new(volcal_formats::compensation::read_linuxcnc(dir, kind).context("--compensation")?)
+    })
 }
 
 /// Outcome of `volcal solve`, for the exit code.

@@ -222,7 +222,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     /// Positioning error along lines (ISO 230-2 style), predicted with uncertainty and optionally
     /// compared with a simulated laser interferometer.
     #[command(
-        after_help = "Examples:\n  volcal validate model.json --axis x\n  volcal validate model.json --diagonals --truth truth.json --machine launch_configs/machines/paper_cmm.yaml\n  volcal validate model.json --axis y --start 0,0,-0.7 --points 11 --out y.csv\n  volcal validate model.json --line 0,0,-0.7:0.7,-0.5,0\n\nThe deviation at each target is the model's volumetric error projected on the line, referred to the start (where an interferometer would be zeroed). Diagonals are the paper's Table 4 (NPP, NPN, PPN, PPP). With --truth (a simulation truth file) each line is also measured by a simulated interferometer on the true machine, --runs bidirectional runs averaged, and the differences reported."
+        after_help = "Examples:\n  volcal validate model.json --axis x\n  volcal validate model.json --diagonals --truth truth.json --machine launch_configs/machines/paper_cmm.yaml\n  volcal validate model.json --axis y --start 0,0,-0.7 --points 11 --out y.csv\n  volcal validate model.json --line 0,0,-0.7:0.7,-0.5,0\n\nThe deviation at each target is the model's volumetric error projected on the line, referred to the start (where an interferometer would be zeroed). Diagonals are the paper's Table 4 (NPP, NPN, PPN, PPP). With --truth (a simulation truth file) each line is also measured by a simulated interferometer on the true machine, --runs bidirectional runs averaged, and the differences reported; with --compensation too, the machine is measured under its controller's compensation (after `volcal export`): the verification of a compensation along its axes.\n  volcal validate model.json --axis x --start 0.4,0.25,-0.25 --truth truth.json --machine M.yaml --compensation comp/"
     )]
     Validate {
         model: PathBuf,
@@ -258,6 +258,12 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Write the lines as CSV.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Measure the simulated machine under a controller applying the compensation in this directory (from `volcal export`: LinuxCNC COMP_FILEs or grid.csv): the ISO 230-2 verification of a compensation. Needs --truth.
+        #[arg(long, requires = "truth")]
+        compensation: Option<PathBuf>,
+        /// COMP_FILE_TYPE of the --compensation files (0 or 1).
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=1))]
+        comp_type: u8,
     },
     /// Reproduce the laser-tracer scenario of Han et al. (2021): simulate, solve, Table 2,
     /// volumetric maximum, axis and diagonal validation.
@@ -435,7 +441,22 @@ fn run() -> anyhow::Result<ExitCode> {
             return Ok(volcal_nodes::node::run_with_args(default_name, body, args));
         }
         Command::Bag { command: BagCommand::Info { bag } } => print!("{}", volcal_cli::launch_cmd::bag_info(&bag)?),
-        Command::Validate { model, axis, diagonals, line, start, points, probe, truth, machine, runs, seed, out } => {
+        Command::Validate {
+            model,
+            axis,
+            diagonals,
+            line,
+            start,
+            points,
+            probe,
+            truth,
+            machine,
+            runs,
+            seed,
+            out,
+            compensation,
+            comp_type,
+        } => {
             let lines = match (axis, diagonals, line) {
                 (Some(a), _, _) => {
                     let axis = volcal::Axis::from_letter(a.trim().chars().next().unwrap_or(' ').to_ascii_uppercase())
@@ -458,6 +479,10 @@ fn run() -> anyhow::Result<ExitCode> {
                 runs,
                 seed,
                 out: out.as_deref(),
+                compensation: compensation.as_deref().map(|d| {
+                    use volcal_formats::compensation::CompFileType;
+                    (d, if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual })
+                }),
             };
             print!("{}", validation::validate_cmd(&args)?);
         }

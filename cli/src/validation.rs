@@ -15,6 +15,7 @@ use volcal::{Axis, ErrorModel, Travel};
 use volcal_formats::machine::Machine;
 use volcal_formats::model_file;
 use volcal_formats::truth_file::TruthFile;
+use volcal_sim::inject::Injection;
 use volcal_sim::line_measurement::measure_line;
 use volcal_sim::{Interferometer, VirtualMachine};
 
@@ -50,6 +51,8 @@ pub struct Measurer {
     /// Bidirectional runs averaged per line (the paper: 5).
     pub runs: usize,
     pub seed: u64,
+    /// The controller's compensation acting on the machine (`--compensation`), if any.
+    pub controller: Option<Box<dyn Injection>>,
 }
 
 impl Measurer {
@@ -67,6 +70,7 @@ impl Measurer {
             interferometer: sim.interferometer,
             runs,
             seed,
+            controller: None,
         })
     }
 }
@@ -94,7 +98,9 @@ pub fn run(
             let targets = line.targets(points);
             let predicted = validate::predict_positioning(model, unc, line, probe, &targets);
             let comparison = measurer.map(|m| {
-                let meas = measure_line(&m.machine, &m.interferometer, line, probe, &targets, m.runs, &mut rng);
+                let controller: Vec<&dyn Injection> = m.controller.iter().map(|c| c.as_ref()).collect();
+                let meas =
+                    measure_line(&m.machine, &m.interferometer, line, probe, &targets, m.runs, &controller, &mut rng);
                 validate::compare(line, &predicted, &meas.as_pairs())
             });
             LineResult { line: line.clone(), predicted, comparison }
@@ -202,6 +208,8 @@ pub struct ValidateArgs<'a> {
     pub runs: usize,
     pub seed: u64,
     pub out: Option<&'a Path>,
+    /// The compensation (`volcal export`'s directory) the measured machine's controller applies.
+    pub compensation: Option<(&'a Path, volcal_formats::compensation::CompFileType)>,
 }
 
 /// `volcal validate`.
@@ -221,7 +229,14 @@ pub fn validate_cmd(a: &ValidateArgs<'_>) -> Result<String> {
         }
     }
     let measurer = match a.truth {
-        Some(t) => Some(Measurer::from_files(t, a.machine, a.runs, a.seed)?),
+        Some(t) => {
+            let mut m = Measurer::from_files(t, a.machine, a.runs, a.seed)?;
+            if let Some((dir, kind)) = a.compensation {
+                m.controller = Some(crate::commands::load_compensation(dir, kind)?);
+            }
+            Some(m)
+        }
+        None if a.compensation.is_some() => bail!("--compensation acts on the simulated machine: give --truth too"),
         None => None,
     };
     let results = run(model, &loaded.uncertainty(), &lines, a.points, &a.probe, measurer.as_ref());
@@ -229,8 +244,10 @@ pub fn validate_cmd(a: &ValidateArgs<'_>) -> Result<String> {
     if let Some(m) = &measurer {
         let _ = writeln!(
             text,
-            "Interferometer: simulated on the truth, {} bidirectional run(s) averaged per line, seed {}.",
-            m.runs, m.seed
+            "Interferometer: simulated on the truth{}, {} bidirectional run(s) averaged per line, seed {}.",
+            a.compensation.map(|(d, _)| format!(" under the compensation in {}", d.display())).unwrap_or_default(),
+            m.runs,
+            m.seed
         );
     }
     if let Some(out) = a.out {

@@ -2,9 +2,12 @@
 //! machine tool), identify it, export the compensation, and measure the machine under a
 //! controller applying it (`volcal simulate --compensation`).
 //!
-//! - LinuxCNC per-joint tables: the compensated machine is measured with new noise and
-//!   identified again; the positioning error along the tables' reference lines must fall to at
-//!   most 10 % of before on every axis.
+//! - LinuxCNC per-joint tables: the positioning error along the tables' reference lines must
+//!   fall to at most 10 % of before on every axis, verified two ways: as a calibration lab
+//!   verifies a compensation, by a laser interferometer along each reference line (ISO 230-2
+//!   runs, `volcal validate --truth --compensation`: the simulated interferometer on the
+//!   compensated machine), and by measuring the compensated machine with new noise and
+//!   identifying it again.
 //! - A volumetric grid: the volumetric error at the grid's tool point, rigidly aligned, must
 //!   fall to at most 15 % of before (max over the volume).
 
@@ -41,20 +44,69 @@ fn positioning_ranges(model: &Path, dir: &Path, point: [f64; 3], travel: [[f64; 
     out
 }
 
-/// The LinuxCNC closed loop on one machine: returns the positioning error ranges along the
-/// reference lines through `point` before and after, metres.
-fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) -> ([f64; 3], [f64; 3]) {
+/// Range (max - min) of the deviations a simulated laser interferometer measures along the
+/// reference line of each axis through `point` (`volcal validate --truth`, 21 targets, 5
+/// bidirectional runs), on the machine of `truth`, under the controller's compensation `comp`
+/// when given; metres.
+fn interferometer_ranges(
+    model: &Path,
+    truth: &Path,
+    machine: &Path,
+    comp: Option<&Path>,
+    point: [f64; 3],
+    travel: [[f64; 2]; 3],
+) -> [f64; 3] {
+    std::array::from_fn(|a| {
+        let mut start = point;
+        start[a] = travel[a][0];
+        let start = format!("{},{},{}", start[0], start[1], start[2]);
+        let axis = ["x", "y", "z"][a];
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
+            &"validate",
+            &model,
+            &"--axis",
+            &axis,
+            &"--start",
+            &start,
+            &"--points",
+            &"21",
+            &"--truth",
+            &truth,
+            &"--machine",
+            &machine,
+        ];
+        if let Some(c) = &comp {
+            args.extend_from_slice(&[&"--compensation", c]);
+        }
+        let (ok, out, err) = volcal(&args);
+        assert!(ok, "{err}");
+        let line = out.lines().find(|l| l.contains("positioning error")).expect("a summary line");
+        let um: f64 = line.split("interferometer ").nth(1).unwrap().split(" um").next().unwrap().parse().unwrap();
+        um * 1e-6
+    })
+}
+
+/// What the closed loop measured: positioning error ranges along the reference lines, metres.
+struct ClosedLoop {
+    /// Identified from the first campaign, and from the campaign of the compensated machine.
+    identified: ([f64; 3], [f64; 3]),
+    /// Measured by the simulated interferometer without and with the compensation.
+    interferometer: ([f64; 3], [f64; 3]),
+}
+
+/// The LinuxCNC closed loop on one machine, with the reference lines through `point`.
+fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) -> ClosedLoop {
     let dir = scratch(&format!("closed-loop-{seed}"));
     let machine = repo_root().join("launch_configs/machines").join(machine);
     let p = format!("{},{},{}", point[0], point[1], point[2]);
-    let (c0, m0, comp) = (dir.join("c0.csv"), dir.join("m0.json"), dir.join("comp"));
+    let (c0, t0, m0, comp) = (dir.join("c0.csv"), dir.join("t0.json"), dir.join("m0.json"), dir.join("comp"));
     let (c1, m1) = (dir.join("c1.csv"), dir.join("m1.json"));
     let run = |args: &[&dyn AsRef<std::ffi::OsStr>]| {
         let (ok, _, err) = volcal(args);
         assert!(ok, "{err}");
     };
     let (s, noise) = (seed.to_string(), (seed + 100).to_string());
-    run(&[&"simulate", &"--machine", &machine, &"--seed", &s, &"--out", &c0]);
+    run(&[&"simulate", &"--machine", &machine, &"--seed", &s, &"--out", &c0, &"--truth", &t0]);
     run(&[&"solve", &c0, &"--machine", &machine, &"--out", &m0]);
     run(&[&"export", &m0, &"--format", &"linuxcnc", &"--out", &comp, &"--step-mm", &"20", &"--point", &p]);
     // The same machine, new noise, under the controller's compensation.
@@ -72,22 +124,30 @@ fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64
         &comp,
     ]);
     run(&[&"solve", &c1, &"--machine", &machine, &"--out", &m1]);
-    (positioning_ranges(&m0, &dir, point, travel), positioning_ranges(&m1, &dir, point, travel))
+    ClosedLoop {
+        identified: (positioning_ranges(&m0, &dir, point, travel), positioning_ranges(&m1, &dir, point, travel)),
+        interferometer: (
+            interferometer_ranges(&m0, &t0, &machine, None, point, travel),
+            interferometer_ranges(&m0, &t0, &machine, Some(&comp), point, travel),
+        ),
+    }
 }
 
 fn assert_linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) {
-    let (before, after) = linuxcnc_closed_loop(machine, seed, point, travel);
+    let cl = linuxcnc_closed_loop(machine, seed, point, travel);
     let mut worst = 0.0f64;
-    for a in 0..3 {
-        let ratio = after[a] / before[a];
-        worst = worst.max(ratio);
-        eprintln!(
-            "{machine} axis {}: positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
-            ["X", "Y", "Z"][a],
-            before[a] * 1e6,
-            after[a] * 1e6,
-            ratio * 100.0
-        );
+    for (how, (before, after)) in [("interferometer", cl.interferometer), ("identified again", cl.identified)] {
+        for a in 0..3 {
+            let ratio = after[a] / before[a];
+            worst = worst.max(ratio);
+            eprintln!(
+                "{machine} axis {} ({how}): positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
+                ["X", "Y", "Z"][a],
+                before[a] * 1e6,
+                after[a] * 1e6,
+                ratio * 100.0
+            );
+        }
     }
     assert!(worst <= 0.10, "{machine}: an axis keeps {:.1} % of its positioning error", worst * 100.0);
 }
@@ -97,12 +157,14 @@ fn linuxcnc_compensation_removes_the_positioning_errors() {
     assert_linuxcnc_closed_loop("demo_cmm.yaml", 5, [0.5, 0.4, -0.3], [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]]);
 }
 
-/// The machine tool's positioning errors are small (X about 10 um over 0.8 m), and the
-/// remeasurement identifies what remains with about 1 um of noise: X stays at 14.1 % (seed 31,
-/// chosen once). Meeting 10 % needs the compensated axis measured directly (ISO 230-2 runs of a
-/// linear interferometer along the line), which the closed loop does not simulate yet.
+/// The machine tool's positioning errors are small (X about 9 um over 0.8 m, Y 5 um over 0.5 m)
+/// against what the patent plan's campaign identifies them to (U95 along the Y line up to 1.8
+/// um): with `representation: auto`, seed 31 (chosen once), the interferometer finds X at 7.9 %,
+/// Y at 12.3 %, Z at 4.6 % of before, and the remeasurement identifies Y at 16.8 %. Y is what the
+/// identification leaves: a campaign with twice the beam directions gave X 4.7 %, Y 9.2 %, Z
+/// 4.7 % (once, by hand; not a test).
 #[test]
-#[ignore = "issue 15 open: machine tool X at 14.1 % of before (> 10 %), limited by the remeasurement's identification noise"]
+#[ignore = "issue 15 open: machine tool Y at 12.3 % of before by the interferometer, 16.8 % identified again (> 10 %), limited by the campaign's identification uncertainty"]
 fn linuxcnc_compensation_of_the_machine_tool() {
     assert_linuxcnc_closed_loop(
         "machine_tool_xfyz.yaml",
