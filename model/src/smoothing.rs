@@ -681,8 +681,8 @@ impl Derivatives {
             let v = &rp.bt[k] * (rp.bt[k].transpose() * y) + &rp.h[k];
             w.col_mut(k).copy_from(v.col(0));
         }
-        // The columns in two halves side by side (each column's solve, and each entry of the
-        // Gram matrix, is the same whichever half computes it).
+        // The columns in two halves side by side: the split is fixed (half of the columns,
+        // whatever the machine), so every run computes the same numbers.
         let half = start / 2;
         let solve = |m: faer::MatMut<'_, f64>| {
             faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m, faer::Par::Seq)
