@@ -134,4 +134,43 @@ mod tests {
             }
         }
     }
+
+    /// Under a controller whose table for the line's axis is minus the deviation the line
+    /// measures (sampled at the targets, read by linear interpolation), the compensated machine
+    /// measures zero at the targets; the table's direction columns are read by the direction
+    /// of each pass (a reverse column of zeros leaves the backward passes uncompensated, half
+    /// of the mean deviation).
+    #[test]
+    fn a_controller_compensation_acts_on_the_measured_line() {
+        use crate::controller::{JointCompensation, JointOffsets};
+        let truth = crate::paper::truth();
+        let machine = VirtualMachine { truth: truth.clone(), repeatability_m: 0.0, centring_m: 0.0 };
+        let li = Interferometer { noise_m: 0.0, resolution_m: 0.0, ..Interferometer::default() };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let line = axis_line(&truth.layout.travel, volcal::Axis::X, &Point3::new(0.0, -0.25, -0.35));
+        let t = line.targets(21);
+        let before = measure_line(&machine, &li, &line, &Vector3::zeros(), &t, 1, &[], &mut rng);
+        let nominal: Vec<f64> = t.iter().map(|s| line.at(*s).x).collect();
+        // The deviation is referred to the start: the table moves the start by its first entry.
+        let offsets: Vec<f64> = before.mean_deviation_m.iter().map(|d| -d).collect();
+        let table = |reverse: Vec<f64>| JointCompensation {
+            joints: [
+                Some(JointOffsets { nominal_m: nominal.clone(), forward_m: offsets.clone(), reverse_m: reverse }),
+                None,
+                None,
+            ],
+        };
+        let both = table(offsets.clone());
+        let after = measure_line(&machine, &li, &line, &Vector3::zeros(), &t, 1, &[&both], &mut rng);
+        let range = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
+        assert!(range(&before.mean_deviation_m) > 1e-6, "the paper's X line has micrometres of deviation");
+        for d in &after.mean_deviation_m {
+            assert!(d.abs() < 1e-12, "compensated deviation {d}");
+        }
+        let forward_only = table(vec![0.0; t.len()]);
+        let half = measure_line(&machine, &li, &line, &Vector3::zeros(), &t, 1, &[&forward_only], &mut rng);
+        for (h, b) in half.mean_deviation_m.iter().zip(&before.mean_deviation_m) {
+            assert!((h - 0.5 * b).abs() < 1e-12, "{h} vs half of {b}");
+        }
+    }
 }
