@@ -20,6 +20,7 @@
 use crate::beam::{fit_line, orient_with_readings};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::gauge::{self, Gauge, GAUGE_DIM};
+use crate::halves;
 use crate::identify::{self, Identifiability};
 use crate::kinematics::AxisFrame;
 use crate::model::{ErrorModel, ModelLayout};
@@ -486,23 +487,11 @@ impl<'a> Fit<'a> {
         // The groups in two halves of about equal readings, accumulated side by side and added
         // in a fixed order: the same sums whatever the machine.
         let groups: Vec<usize> = (0..p.obs.groups.len()).filter(|&gi| mask.is_none_or(|m| m[gi])).collect();
-        let total: usize = groups.iter().map(|&gi| p.obs.groups[gi].len()).sum();
-        let mut cut = 0;
-        let mut seen = 0;
-        while cut < groups.len() && 2 * seen < total {
-            seen += p.obs.groups[groups[cut]].len();
-            cut += 1;
-        }
-        let (first, second) = groups.split_at(cut);
+        let lens = groups.iter().map(|&gi| p.obs.groups[gi].len());
+        let (first, second) = groups.split_at(halves::first_half(lens.clone()));
         let acc = |gs: &[usize]| ScoreSums::over(self, rows, effect, gs, n, k, parts);
-        let (mut sums, other) = if total >= 2_000 {
-            std::thread::scope(|sc| {
-                let h = sc.spawn(|| acc(second));
-                (acc(first), h.join().expect("the accumulation does not panic"))
-            })
-        } else {
-            (acc(first), acc(second))
-        };
+        let parallel = lens.sum::<usize>() >= halves::PARALLEL_FROM;
+        let (mut sums, other) = halves::both(parallel, || acc(first), || acc(second));
         sums.add(&other);
         let ScoreSums { b, g2, c } = sums;
         parts
@@ -701,17 +690,10 @@ struct RowBlock {
 impl ModelRows {
     fn new(p: &Problem<'_>, s: &State) -> ModelRows {
         let ng = p.obs.groups.len();
-        let half = p.obs.len() / 2;
-        let cut = p.obs.groups.iter().position(|g| g.range().start >= half).unwrap_or(ng);
-        let halves = if p.obs.len() >= 2_000 {
-            std::thread::scope(|sc| {
-                let h = sc.spawn(|| RowBlock::of(p, s, cut..ng));
-                [RowBlock::of(p, s, 0..cut), h.join().expect("the model rows do not panic")]
-            })
-        } else {
-            [RowBlock::of(p, s, 0..cut), RowBlock::of(p, s, cut..ng)]
-        };
-        ModelRows { halves }
+        let cut = halves::first_half(p.obs.groups.iter().map(|g| g.len()));
+        let parallel = p.obs.len() >= halves::PARALLEL_FROM;
+        let (a, b) = halves::both(parallel, || RowBlock::of(p, s, 0..cut), || RowBlock::of(p, s, cut..ng));
+        ModelRows { halves: [a, b] }
     }
 
     fn block(&self, i: usize) -> (&RowBlock, usize) {

@@ -29,6 +29,7 @@ pub mod estimator;
 pub mod flexibility;
 pub mod functions;
 pub mod gauge;
+mod halves;
 pub mod identify;
 pub mod kinematics;
 pub mod model;

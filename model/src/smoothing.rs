@@ -29,6 +29,7 @@
 //! probe offset) share one smoothing parameter, since the data cannot tell their curvatures apart.
 
 use crate::functions::ErrorFunction;
+use crate::halves;
 use crate::model::ModelLayout;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
@@ -681,27 +682,20 @@ impl Derivatives {
             let v = &rp.bt[k] * (rp.bt[k].transpose() * y) + &rp.h[k];
             w.col_mut(k).copy_from(v.col(0));
         }
-        // The columns in two halves side by side: the split is fixed (half of the columns,
-        // whatever the machine), so every run computes the same numbers.
+        // The columns in two halves side by side ([`crate::halves`]).
         let half = start / 2;
         let solve = |m: faer::MatMut<'_, f64>| {
             faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m, faer::Par::Seq)
         };
-        std::thread::scope(|sc| {
-            let (a, b) = g.as_mut().split_at_col_mut(half);
-            let h = sc.spawn(|| solve(b));
-            solve(a);
-            solve(w.as_mut());
-            h.join().expect("a triangular solve does not panic");
-        });
+        let (left, right) = g.as_mut().split_at_col_mut(half);
+        halves::both(true, || (solve(left), solve(w.as_mut())), || solve(right));
         let gr = g.as_ref();
-        let gram = std::thread::scope(|sc| {
-            let (top, bottom) = (gr.subcols(0, half), gr.subcols(half, start - half));
-            let h = sc.spawn(move || bottom.transpose() * gr);
-            let t = top.transpose() * gr;
-            let b = h.join().expect("a product does not panic");
-            Mat::from_fn(start, start, |i, j| if i < half { t[(i, j)] } else { b[(i - half, j)] })
-        });
+        let (top, bottom) = halves::both(
+            true,
+            || gr.subcols(0, half).transpose() * gr,
+            || gr.subcols(half, start - half).transpose() * gr,
+        );
+        let gram = Mat::from_fn(start, start, |i, j| if i < half { top[(i, j)] } else { bottom[(i - half, j)] });
         let t = cols.iter().map(|c| c.clone().map(|i| gram[(i, i)]).sum()).collect();
         Derivatives { cols, gram, t, w }
     }
