@@ -141,12 +141,17 @@ pub fn positions_determine(basis: &Basis, positions: &[f64]) -> bool {
     true
 }
 
+/// The readings' positions along `axis` that lie in its travel (to a nanometre).
+fn inside_travel(travel: &Travel, axis: Axis, positions: &[Vec<f64>; 3]) -> Vec<f64> {
+    let [lo, hi] = travel.range(axis);
+    positions[axis.index()].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect()
+}
+
 /// Per axis, the most knot intervals (up to `most`) that readings at `positions` determine.
 pub fn positions_bound(travel: &Travel, positions: &[Vec<f64>; 3], most: usize) -> [(usize, usize); 3] {
     Axis::ALL.map(|axis| {
         let [lo, hi] = travel.range(axis);
-        let inside: Vec<f64> =
-            positions[axis.index()].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
+        let inside = inside_travel(travel, axis, positions);
         let most = most.max(1);
         let k = (1..=most.min(inside.len().saturating_sub(3)).max(1))
             .rev()
@@ -325,9 +330,7 @@ fn finish(
             KnotBound::Data
         };
         if k.bound == KnotBound::Positions {
-            let [lo, hi] = travel.range(k.axis);
-            let inside = positions[a].iter().copied().filter(|q| (lo - 1e-9..=hi + 1e-9).contains(q)).collect();
-            solution.resolution[a] = AxisResolution::at(inside);
+            solution.resolution[a] = AxisResolution::at(inside_travel(&travel, k.axis, positions));
         }
     }
     AutoSolve { solution, knots }
