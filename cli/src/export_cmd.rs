@@ -97,9 +97,12 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
             }
             let grid_step = residual_step(&model);
             let r = compensation::residual(&model, grid_step, &p, |x| compensation::joint_correction(&tables, x));
-            let readme = linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step, &reversal);
+            let u95 = reference_line_u95(model, &unc, &point, &p);
+            let readme =
+                linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step, &reversal, &u95);
             write(out, "README.txt", &readme)?;
             said.push_str(&said_residual(&r, "positioning only"));
+            let _ = writeln!(said, "{}", line_u95_text(&u95));
         }
         Format::Isg => {
             let step = opts.step_m.unwrap_or(0.010);
@@ -225,6 +228,37 @@ fn said_residual(r: &Residual, what: &str) -> String {
     )
 }
 
+/// Largest expanded uncertainty (k = 2) of the positioning deviation along each axis's reference
+/// line through `point` (from the line's lower end, as an interferometer zeroed there measures
+/// it), metres: what a per-axis table carries of the identification.
+fn reference_line_u95(
+    model: &volcal::ErrorModel,
+    unc: &volcal::predict::Uncertainty<'_>,
+    point: &Point3<f64>,
+    p: &Vector3<f64>,
+) -> [f64; 3] {
+    Axis::ALL.map(|a| {
+        let mut start = *point;
+        start[a.index()] = model.layout.travel.range(a)[0];
+        let line = volcal::validate::axis_line(&model.layout.travel, a, &start);
+        let targets = line.targets(41);
+        volcal::validate::predict_positioning(model, unc, &line, p, &targets)
+            .iter()
+            .map(|t| 2.0 * t.sigma_m)
+            .fold(0.0, f64::max)
+    })
+}
+
+fn line_u95_text(u95: &[f64; 3]) -> String {
+    format!(
+        "positioning along the reference lines known to U95 X {:.3}, Y {:.3}, Z {:.3} um (largest along each line)",
+        u95[0] * 1e6,
+        u95[1] * 1e6,
+        u95[2] * 1e6
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
 fn linuxcnc_readme(
     topology: &str,
     kind: CompFileType,
@@ -234,6 +268,7 @@ fn linuxcnc_readme(
     r: &Residual,
     grid_step: f64,
     reversal: &str,
+    u95: &[f64; 3],
 ) -> String {
     format!(
         "LinuxCNC compensation tables written by volcal (machine {topology}).
@@ -261,7 +296,16 @@ offset ({ox}, {oy}, {oz}) mm. What it drops: straightness, the angular errors' l
 from that point, and squareness. From the model, over the working volume ({grid_mm} mm grid,
 {n} points, same probe offset): volumetric error RMS {b_rms:.3} um, max {b_max:.3} um before;
 RMS {a_rms:.3} um, max {a_max:.3} um left after this compensation.
+
+The tables carry the identification's uncertainty:
+  {u95_text}.
+A compensated axis keeps errors of that size. To make it smaller, measure the three lines
+themselves in the campaign: a plan's `reference_lines` with `runs: 5` (ISO 230-2's five
+bidirectional runs), as launch_configs/plans/machine_tool_compensation.yaml does. Verify the compensated machine with a
+laser interferometer along each line (`volcal iso230-2`; in simulation `volcal validate
+--compensation`).
 ",
+        u95_text = line_u95_text(u95),
         t = kind as u8,
         step_mm = step * 1e3,
         meaning = match kind {

@@ -55,12 +55,14 @@ fn interferometer_ranges(
     comp: Option<&Path>,
     point: [f64; 3],
     travel: [[f64; 2]; 3],
+    targets: usize,
 ) -> [f64; 3] {
     std::array::from_fn(|a| {
         let mut start = point;
         start[a] = travel[a][0];
         let start = format!("{},{},{}", start[0], start[1], start[2]);
         let axis = ["x", "y", "z"][a];
+        let targets = targets.to_string();
         let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
             &"validate",
             &model,
@@ -69,7 +71,7 @@ fn interferometer_ranges(
             &"--start",
             &start,
             &"--points",
-            &"21",
+            &targets,
             &"--truth",
             &truth,
             &"--machine",
@@ -88,16 +90,46 @@ fn interferometer_ranges(
 
 /// What the closed loop measured: positioning error ranges along the reference lines, metres.
 struct ClosedLoop {
+    /// The simulated machine itself, without and with the compensation: a noise-free
+    /// interferometer at 41 targets (a perfect measurement).
+    exact: ([f64; 3], [f64; 3]),
+    /// Measured as a lab measures, by the simulated interferometer with the machine file's noise
+    /// (21 targets, 5 bidirectional runs), without and with the compensation.
+    interferometer: ([f64; 3], [f64; 3]),
     /// Identified from the first campaign, and from the campaign of the compensated machine.
     identified: ([f64; 3], [f64; 3]),
-    /// Measured by the simulated interferometer without and with the compensation.
-    interferometer: ([f64; 3], [f64; 3]),
 }
 
-/// The LinuxCNC closed loop on one machine, with the reference lines through `point`.
-fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) -> ClosedLoop {
+/// A copy of the machine file `machine` in `dir` whose simulated instruments are noise-free
+/// (no positioning repeatability, no interferometer noise): `volcal validate --truth` with it
+/// measures the simulated machine exactly.
+fn noise_free(machine: &Path, dir: &Path) -> std::path::PathBuf {
+    let mut m: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(machine).unwrap()).unwrap();
+    let sim = &mut m["simulation"];
+    sim["repeatability_m"] = 0.0.into();
+    sim["interferometer"]["noise_m"] = 0.0.into();
+    let out = dir.join("noise_free_machine.yaml");
+    std::fs::write(&out, serde_yaml::to_string(&m).unwrap()).unwrap();
+    out
+}
+
+/// The LinuxCNC closed loop on one machine, measured by the campaign `plan` (a file in
+/// `launch_configs/plans`; `None`: the patent's example), with the reference lines through
+/// `point`.
+fn linuxcnc_closed_loop(
+    machine: &str,
+    plan: Option<&str>,
+    seed: u64,
+    point: [f64; 3],
+    travel: [[f64; 2]; 3],
+) -> ClosedLoop {
     let dir = scratch(&format!("closed-loop-{seed}"));
     let machine = repo_root().join("launch_configs/machines").join(machine);
+    let plan = plan.map(|p| repo_root().join("launch_configs/plans").join(p));
+    let plan_args: Vec<&dyn AsRef<std::ffi::OsStr>> = match &plan {
+        Some(p) => vec![&"--plan", p],
+        None => Vec::new(),
+    };
     let p = format!("{},{},{}", point[0], point[1], point[2]);
     let (c0, t0, m0, comp) = (dir.join("c0.csv"), dir.join("t0.json"), dir.join("m0.json"), dir.join("comp"));
     let (c1, m1) = (dir.join("c1.csv"), dir.join("m1.json"));
@@ -106,42 +138,85 @@ fn linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64
         assert!(ok, "{err}");
     };
     let (s, noise) = (seed.to_string(), (seed + 100).to_string());
-    run(&[&"simulate", &"--machine", &machine, &"--seed", &s, &"--out", &c0, &"--truth", &t0]);
+    run(&[
+        &[
+            &"simulate" as &dyn AsRef<std::ffi::OsStr>,
+            &"--machine",
+            &machine,
+            &"--seed",
+            &s,
+            &"--out",
+            &c0,
+            &"--truth",
+            &t0,
+        ],
+        &plan_args[..],
+    ]
+    .concat());
     run(&[&"solve", &c0, &"--machine", &machine, &"--out", &m0]);
     run(&[&"export", &m0, &"--format", &"linuxcnc", &"--out", &comp, &"--step-mm", &"20", &"--point", &p]);
     // The same machine, new noise, under the controller's compensation.
     run(&[
-        &"simulate",
-        &"--machine",
-        &machine,
-        &"--seed",
-        &s,
-        &"--noise-seed",
-        &noise,
-        &"--out",
-        &c1,
-        &"--compensation",
-        &comp,
-    ]);
+        &[
+            &"simulate" as &dyn AsRef<std::ffi::OsStr>,
+            &"--machine",
+            &machine,
+            &"--seed",
+            &s,
+            &"--noise-seed",
+            &noise,
+            &"--out",
+            &c1,
+            &"--compensation",
+            &comp,
+        ],
+        &plan_args[..],
+    ]
+    .concat());
     run(&[&"solve", &c1, &"--machine", &machine, &"--out", &m1]);
+    let exact = noise_free(&machine, &dir);
     ClosedLoop {
-        identified: (positioning_ranges(&m0, &dir, point, travel), positioning_ranges(&m1, &dir, point, travel)),
-        interferometer: (
-            interferometer_ranges(&m0, &t0, &machine, None, point, travel),
-            interferometer_ranges(&m0, &t0, &machine, Some(&comp), point, travel),
+        exact: (
+            interferometer_ranges(&m0, &t0, &exact, None, point, travel, 41),
+            interferometer_ranges(&m0, &t0, &exact, Some(&comp), point, travel, 41),
         ),
+        interferometer: (
+            interferometer_ranges(&m0, &t0, &machine, None, point, travel, 21),
+            interferometer_ranges(&m0, &t0, &machine, Some(&comp), point, travel, 21),
+        ),
+        identified: (positioning_ranges(&m0, &dir, point, travel), positioning_ranges(&m1, &dir, point, travel)),
     }
 }
 
-fn assert_linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel: [[f64; 2]; 3]) {
-    let cl = linuxcnc_closed_loop(machine, seed, point, travel);
-    let mut worst = 0.0f64;
-    for (how, (before, after)) in [("interferometer", cl.interferometer), ("identified again", cl.identified)] {
+/// Runs the LinuxCNC closed loop and asserts that the compensated machine keeps at most 10 % of
+/// its positioning error on every axis. `measured_too`: assert it also of the lab's ISO 230-2
+/// measurement and of the identification again, which carry their own noise (on the machine tool
+/// that noise is itself near 10 % of the smaller axes' errors; see there).
+fn assert_linuxcnc_closed_loop(
+    machine: &str,
+    plan: Option<&str>,
+    seed: u64,
+    point: [f64; 3],
+    travel: [[f64; 2]; 3],
+    measured_too: bool,
+) {
+    let cl = linuxcnc_closed_loop(machine, plan, seed, point, travel);
+    let (mut worst, mut worst_measured) = (0.0f64, 0.0f64);
+    let hows = [
+        ("the machine, exactly", cl.exact),
+        ("interferometer, 5 runs", cl.interferometer),
+        ("identified again", cl.identified),
+    ];
+    for (k, (how, (before, after))) in hows.into_iter().enumerate() {
         for a in 0..3 {
             let ratio = after[a] / before[a];
-            worst = worst.max(ratio);
+            if k == 0 {
+                worst = worst.max(ratio);
+            } else {
+                worst_measured = worst_measured.max(ratio);
+            }
             eprintln!(
-                "{machine} axis {} ({how}): positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
+                "{machine} seed {seed} axis {} ({how}): positioning error along the reference line {:.3} um before, {:.3} um after ({:.1} %)",
                 ["X", "Y", "Z"][a],
                 before[a] * 1e6,
                 after[a] * 1e6,
@@ -149,29 +224,53 @@ fn assert_linuxcnc_closed_loop(machine: &str, seed: u64, point: [f64; 3], travel
             );
         }
     }
-    assert!(worst <= 0.10, "{machine}: an axis keeps {:.1} % of its positioning error", worst * 100.0);
+    assert!(worst <= 0.10, "{machine} seed {seed}: an axis keeps {:.1} % of its positioning error", worst * 100.0);
+    if measured_too {
+        assert!(
+            worst_measured <= 0.10,
+            "{machine} seed {seed}: measured, an axis keeps {:.1} % of its positioning error",
+            worst_measured * 100.0
+        );
+    }
 }
 
 #[test]
 fn linuxcnc_compensation_removes_the_positioning_errors() {
-    assert_linuxcnc_closed_loop("demo_cmm.yaml", 5, [0.5, 0.4, -0.3], [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]]);
+    assert_linuxcnc_closed_loop(
+        "demo_cmm.yaml",
+        None,
+        5,
+        [0.5, 0.4, -0.3],
+        [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]],
+        true,
+    );
 }
 
-/// The machine tool's positioning errors are small (X about 9 um over 0.8 m, Y 5 um over 0.5 m)
-/// against what the patent plan's campaign identifies them to (U95 along the Y line up to 1.8
-/// um): with `representation: auto`, seed 31 (chosen once), the interferometer finds X at 7.9 %,
-/// Y at 12.3 %, Z at 4.6 % of before, and the remeasurement identifies Y at 16.8 %. Y is what the
-/// identification leaves: a campaign with twice the beam directions gave X 4.7 %, Y 9.2 %, Z
-/// 4.7 % (once, by hand; not a test).
+/// The machine tool's positioning errors are small (3 to 13 um per axis) against what the
+/// patent plan alone identifies them to (U95 along the Y line up to 1.6 um: with it the
+/// interferometer found Y at 12.3 % of before, seed 31). The compensation campaign
+/// (`machine_tool_compensation.yaml`) adds 5 bidirectional runs along each axis through the
+/// tables' reference point, as a lab measures the lines a per-axis compensation corrects.
+///
+/// Seeds: 31 as before; 32 to 35 were run once by hand with one run per line (Y at 2.4 to
+/// 4.3 %); 36 failed with one run per line (the machine kept 15.7 % of Y's 3.0 um), which is
+/// why the plan has 5 runs; 37 passed with one run; 38 to 40 were never run before this test.
+///
+/// Asserted on the compensated machine itself (the acceptance's criterion). The lab's 5-run
+/// interferometer measurement is printed, not asserted: its own scatter (0.2 um repeatability)
+/// gives a range of about 0.3 um after compensation, which is 10 % of the smaller axes' errors.
 #[test]
-#[ignore = "issue 15 open: machine tool Y at 12.3 % of before by the interferometer, 16.8 % identified again (> 10 %), limited by the campaign's identification uncertainty"]
 fn linuxcnc_compensation_of_the_machine_tool() {
-    assert_linuxcnc_closed_loop(
-        "machine_tool_xfyz.yaml",
-        31,
-        [0.4, 0.25, -0.25],
-        [[0.0, 0.8], [0.0, 0.5], [-0.5, 0.0]],
-    );
+    for seed in [31, 36, 37, 38, 39, 40] {
+        assert_linuxcnc_closed_loop(
+            "machine_tool_xfyz.yaml",
+            Some("machine_tool_compensation.yaml"),
+            seed,
+            [0.4, 0.25, -0.25],
+            [[0.0, 0.8], [0.0, 0.5], [-0.5, 0.0]],
+            false,
+        );
+    }
 }
 
 /// The grid closed loop on one machine: identify, export the volumetric grid at tool point

@@ -76,6 +76,56 @@ pub struct Plan {
     pub path_step_m: [f64; 3],
     /// Time to move the device to a new station, seconds.
     pub station_setup_s: f64,
+    /// Beams along machine axes through given points, measured after the stations' beams, each
+    /// from its own device position on the line's extension: the lines a per-axis compensation
+    /// table (LinuxCNC, Sinumerik EEC) or an ISO 230-2 test refers to, measured directly.
+    pub reference_lines: Vec<ReferenceLine>,
+}
+
+/// A beam along one machine axis through a point, over the whole travel of that axis.
+///
+/// Why: a per-axis compensation corrects positioning along one line per axis, and the error
+/// there is what the compensation is judged by. The stations' beams determine it only through
+/// the whole model, to the model's uncertainty; a beam on the line measures it directly (as a
+/// laser interferometer set up for an ISO 230-2 test does), and the estimator uses it like any
+/// other beam (patent eq. 2).
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct ReferenceLine {
+    /// The machine axis the beam is parallel to.
+    pub axis: LineAxis,
+    /// A point of the line (indicated machine position), metres; the other two coordinates must
+    /// lie inside the travel.
+    pub through: [f64; 3],
+    /// Probe / reflector offset on this line, metres (default: none, the tool point).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub probe_offset: [f64; 3],
+    /// Bidirectional runs, as an ISO 230-2 test measures a line (it asks for at least 5): as
+    /// many beams along the line, each out and back, each pointed anew. Absent: one beam, out
+    /// only unless the plan is bidirectional.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub runs: Option<usize>,
+}
+
+/// Machine axis of a [`ReferenceLine`] (`x`, `y` or `z` in a plan file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
+pub enum LineAxis {
+    X,
+    Y,
+    Z,
+}
+
+impl LineAxis {
+    pub fn axis(self) -> Axis {
+        match self {
+            LineAxis::X => Axis::X,
+            LineAxis::Y => Axis::Y,
+            LineAxis::Z => Axis::Z,
+        }
+    }
 }
 
 impl Default for Plan {
@@ -94,6 +144,7 @@ impl Default for Plan {
             speeds_mps: Vec::new(),
             path_step_m: [0.07, 0.05, 0.07],
             station_setup_s: 600.0,
+            reference_lines: Vec::new(),
         }
     }
 }
@@ -167,6 +218,9 @@ impl Plan {
         }
         if self.path_step_m.iter().any(|s| !(*s > 0.0)) {
             return Err(PlanError("path_step_m must be positive".into()));
+        }
+        if let Some(l) = self.reference_lines.iter().find(|l| l.runs == Some(0)) {
+            return Err(PlanError(format!("reference line along {:?}: runs must be at least 1", l.axis.axis())));
         }
         Ok(())
     }
@@ -296,7 +350,54 @@ impl Plan {
                 });
             }
         }
+        let first_line_station = tasks.last().map_or(0, |t| t.station + 1);
+        for (k, line) in self.reference_lines.iter().enumerate() {
+            tasks.extend(self.reference_line_tasks(line, first_line_station + k as u32, travel)?);
+        }
         Ok(tasks)
+    }
+
+    /// The beam tasks of a reference line, one per run: the device on the line's extension, 5 %
+    /// of the axis travel below its lower end, pointing along the axis; the points span the
+    /// travel with the stations' 1 % margins.
+    fn reference_line_tasks(
+        &self,
+        line: &ReferenceLine,
+        station: u32,
+        travel: &Travel,
+    ) -> Result<Vec<BeamTask>, PlanError> {
+        let a = line.axis.axis();
+        let p = Vector3::from(line.probe_offset);
+        let mut d = Vector3::zeros();
+        d[a.index()] = 1.0;
+        let mut pivot = Point3::from(Vector3::from(line.through) + p);
+        pivot[a.index()] = travel.range(a)[0] - 0.05 * travel.length(a) + p[a.index()];
+        let seg = segment_in_travel(&pivot, &d, travel, &p).ok_or_else(|| {
+            PlanError(format!(
+                "reference line along {a:?} through ({:.3}, {:.3}, {:.3}) m with probe offset ({:.3}, {:.3}, {:.3}) m leaves the travel",
+                line.through[0], line.through[1], line.through[2], p.x, p.y, p.z
+            ))
+        })?;
+        let margin = 0.01 * (seg[1] - seg[0]);
+        let (s0, s1) = (seg[0] + margin, seg[1] - margin);
+        let n = self.points_per_beam;
+        let mut abscissae: Vec<f64> = (0..n).map(|i| s0 + (s1 - s0) * i as f64 / (n - 1) as f64).collect();
+        if self.bidirectional || line.runs.is_some() {
+            let back: Vec<f64> = abscissae.iter().rev().cloned().collect();
+            abscissae.extend(back);
+        }
+        let (azimuth_rad, elevation_rad) = angles_from_direction(&d);
+        Ok((0..line.runs.unwrap_or(1) as u32)
+            .map(|beam| BeamTask {
+                station,
+                beam,
+                pivot,
+                azimuth_rad,
+                elevation_rad,
+                probe_offset: p,
+                abscissae: abscissae.clone(),
+            })
+            .collect())
     }
 
     /// Expands a tracer plan into path tasks: each station runs the 12 edges of the cuboid.
@@ -370,4 +471,73 @@ pub fn segment_in_travel(pivot: &Point3<f64>, d: &Vector3<f64>, travel: &Travel,
 /// Commanded direction of a task.
 pub fn task_direction(t: &BeamTask) -> Vector3<f64> {
     direction_from_angles(t.azimuth_rad, t.elevation_rad)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn travel() -> Travel {
+        Travel::new([0.0, 0.8], [0.0, 0.5], [-0.5, 0.0])
+    }
+
+    #[test]
+    fn a_reference_line_is_one_beam_along_its_axis_over_the_travel() {
+        let through = [0.4, 0.25, -0.25];
+        let lines = [LineAxis::X, LineAxis::Y, LineAxis::Z].map(|axis| ReferenceLine {
+            axis,
+            through,
+            probe_offset: [0.0; 3],
+            runs: None,
+        });
+        let plan = Plan { reference_lines: lines.to_vec(), ..Plan::short() };
+        let tasks = plan.beam_tasks(&travel()).unwrap();
+        let stations = plan.station_positions(&travel()).len() as u32;
+        assert_eq!(tasks.len(), 3 * 12 + 3);
+        for (k, t) in tasks[36..].iter().enumerate() {
+            let a = Axis::ALL[k];
+            assert_eq!((t.station, t.beam), (stations + k as u32, 0), "each line from its own device position");
+            let d = task_direction(t);
+            assert!((d - Vector3::from_fn(|i, _| if i == a.index() { 1.0 } else { 0.0 })).norm() < 1e-12);
+            let [lo, hi] = travel().range(a);
+            let first = t.pivot + d * t.abscissae[0] - t.probe_offset;
+            let last = t.pivot + d * *t.abscissae.last().unwrap() - t.probe_offset;
+            for i in 0..3 {
+                if i != a.index() {
+                    assert!((first[i] - through[i]).abs() < 1e-12 && (last[i] - through[i]).abs() < 1e-12);
+                }
+            }
+            // The stations' 1 % margins at both ends.
+            assert!((first[a.index()] - (lo + 0.01 * (hi - lo))).abs() < 1e-12, "{first}");
+            assert!((last[a.index()] - (hi - 0.01 * (hi - lo))).abs() < 1e-12, "{last}");
+            assert_eq!(t.abscissae.len(), plan.points_per_beam);
+        }
+    }
+
+    #[test]
+    fn a_reference_line_outside_the_travel_is_refused_with_where() {
+        let line = ReferenceLine { axis: LineAxis::Y, through: [0.9, 0.25, -0.25], probe_offset: [0.0; 3], runs: None };
+        let plan = Plan { reference_lines: vec![line], ..Plan::short() };
+        let err = plan.beam_tasks(&travel()).unwrap_err().to_string();
+        assert!(err.contains("reference line along Y through (0.900, 0.250, -0.250)"), "{err}");
+    }
+
+    #[test]
+    fn runs_are_beams_out_and_back_along_the_line() {
+        let line =
+            ReferenceLine { axis: LineAxis::Y, through: [0.4, 0.25, -0.25], probe_offset: [0.0; 3], runs: Some(5) };
+        let plan = Plan { reference_lines: vec![line], ..Plan::short() };
+        let tasks = plan.beam_tasks(&travel()).unwrap();
+        let runs = &tasks[36..];
+        assert_eq!(runs.len(), 5);
+        for (k, t) in runs.iter().enumerate() {
+            assert_eq!((t.station, t.beam), (runs[0].station, k as u32));
+            let n = plan.points_per_beam;
+            assert_eq!(t.abscissae.len(), 2 * n);
+            assert!((0..n).all(|i| t.abscissae[i] == t.abscissae[2 * n - 1 - i]), "out and back over the same targets");
+        }
+        let zero = ReferenceLine { runs: Some(0), ..plan.reference_lines[0].clone() };
+        let err = Plan { reference_lines: vec![zero], ..Plan::short() }.beam_tasks(&travel()).unwrap_err();
+        assert!(err.to_string().contains("runs must be at least 1"), "{err}");
+    }
 }
