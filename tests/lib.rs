@@ -108,6 +108,16 @@ pub mod auto_study;
 pub mod diagnosis;
 pub mod truth_families;
 
+/// `y` less its least-squares straight line in `s` (how ISO 230-1 evaluates a straightness).
+pub fn detrended(s: &[f64], y: &[f64]) -> Vec<f64> {
+    let n = s.len().max(1) as f64;
+    let (ms, my) = (s.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let sxx: f64 = s.iter().map(|v| (v - ms).powi(2)).sum();
+    let sxy: f64 = s.iter().zip(y).map(|(a, b)| (a - ms) * (b - my)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    s.iter().zip(y).map(|(a, b)| b - my - slope * (a - ms)).collect()
+}
+
 /// A volumetric error field after removing the best-fitting rigid-body motion `t + w x X`: what
 /// remains of it in the machine's own frame, where a rigid motion of the whole volume is not an
 /// error (it is the gauge freedom of the identification seen at one tool point). Returns

@@ -78,7 +78,7 @@ pub fn simulate_cmd(
         opts.inject.iter().flat_map(|s| s.split('+')).map(str::trim).filter(|s| !s.is_empty()).collect();
     let mut injections = from_specs(&specs.join("+"), &ctx).map_err(|e| anyhow::anyhow!("--inject: {e}"))?;
     if let Some((dir, kind)) = &opts.compensation {
-        injections.push(load_compensation(dir, *kind)?);
+        injections.push(load_compensation(dir, *kind, machine.layout.topology.clone())?);
     }
     let refs: Vec<&dyn Injection> = injections.iter().map(|b| b.as_ref()).collect();
     let pb = spinner("simulating campaign");
@@ -98,14 +98,24 @@ pub fn simulate_cmd(
     Ok(())
 }
 
-/// The controller that a compensation directory (`volcal export`'s output) describes: a
-/// volumetric grid when it holds `grid.csv`, else LinuxCNC per-joint tables of `kind`.
-pub fn load_compensation(dir: &Path, kind: volcal_formats::compensation::CompFileType) -> Result<Box<dyn Injection>> {
-    let grid = dir.join("grid.csv");
-    Ok(if grid.exists() {
-        Box::new(volcal_formats::compensation_grid::read_grid(&grid).context("--compensation")?)
+/// The controller that a compensation directory (`volcal export`'s output) describes, by the
+/// files it holds: a volumetric grid (`grid.csv`), ISG volumetric tables (`isg_x.csv`, applied
+/// through the machine's `topology`, as the kernel's configured chain does), SINUMERIK EEC and
+/// CEC tables (`eec.mpf`, `cec.mpf`), else LinuxCNC per-joint tables of `kind`.
+pub fn load_compensation(
+    dir: &Path,
+    kind: volcal_formats::compensation::CompFileType,
+    topology: volcal::Topology,
+) -> Result<Box<dyn Injection>> {
+    let ctx = "--compensation";
+    Ok(if dir.join("grid.csv").exists() {
+        Box::new(volcal_formats::compensation_grid::read_grid(&dir.join("grid.csv")).context(ctx)?)
+    } else if dir.join("isg_x.csv").exists() {
+        Box::new(volcal_formats::isg::read_isg(dir, topology).context(ctx)?)
+    } else if dir.join("eec.mpf").exists() {
+        Box::new(volcal_formats::sinumerik::read_sinumerik(dir).context(ctx)?)
     } else {
-        Box::new(volcal_formats::compensation::read_linuxcnc(dir, kind).context("--compensation")?)
+        Box::new(volcal_formats::compensation::read_linuxcnc(dir, kind).context(ctx)?)
     })
 }
 

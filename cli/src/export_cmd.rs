@@ -145,7 +145,8 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
                 eec[0].nominal_m.len()
             );
             let grid_step = residual_step(&model);
-            let r = compensation::residual(&model, grid_step, &p, |x| sinumerik::correction(&eec, &cec, x));
+            let controller = sinumerik::controller(&eec, &cec);
+            let r = compensation::residual(&model, grid_step, &p, |x| controller.at(x));
             write(
                 out,
                 "README.txt",

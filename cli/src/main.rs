@@ -54,7 +54,7 @@ enum Command {
         /// Record the air (temperature, pressure, humidity) with every reading.
         #[arg(long)]
         record_air: bool,
-        /// Simulate the machine under a controller applying the compensation in this directory (from `volcal export`): a volumetric grid (grid.csv, interpolated trilinearly, added to the command) or LinuxCNC COMP_FILEs (x.comp, y.comp, z.comp): measure the compensated machine.
+        /// Simulate the machine under a controller applying the compensation in this directory (from `volcal export`): a volumetric grid (grid.csv, interpolated trilinearly, added to the command), ISG volumetric tables (isg_x.csv, isg_y.csv, isg_z.csv: the 21 functions through the machine's chain, at the active tool), SINUMERIK EEC and CEC tables (eec.mpf, cec.mpf) or LinuxCNC COMP_FILEs (x.comp, y.comp, z.comp): measure the compensated machine.
         #[arg(long)]
         compensation: Option<PathBuf>,
         /// COMP_FILE_TYPE of the --compensation files (0 or 1).
@@ -258,7 +258,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Write the lines as CSV.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Measure the simulated machine under a controller applying the compensation in this directory (from `volcal export`: LinuxCNC COMP_FILEs or grid.csv): the ISO 230-2 verification of a compensation. Needs --truth.
+        /// Measure the simulated machine under a controller applying the compensation in this directory (from `volcal export`: LinuxCNC COMP_FILEs, grid.csv, ISG tables or SINUMERIK EEC/CEC): the ISO 230-2 verification of a compensation. Needs --truth.
         #[arg(long, requires = "truth")]
         compensation: Option<PathBuf>,
         /// COMP_FILE_TYPE of the --compensation files (0 or 1).

@@ -232,7 +232,8 @@ pub fn validate_cmd(a: &ValidateArgs<'_>) -> Result<String> {
         Some(t) => {
             let mut m = Measurer::from_files(t, a.machine, a.runs, a.seed)?;
             if let Some((dir, kind)) = a.compensation {
-                m.controller = Some(crate::commands::load_compensation(dir, kind)?);
+                let topology = m.machine.truth.layout.topology.clone();
+                m.controller = Some(crate::commands::load_compensation(dir, kind, topology)?);
             }
             Some(m)
         }

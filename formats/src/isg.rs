@@ -23,11 +23,12 @@
 //!   70474); what linear interpolation between the nodes loses is [`interpolation_residual`].
 
 use crate::compensation::{axis_nodes, Residual};
-use anyhow::Result;
+use anyhow::{bail, Context, Result};
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
-use volcal::{Axis, ErrorFunction, ErrorModel, Squareness};
-use volcal_sim::controller::bracket;
+use std::path::Path;
+use volcal::{Axis, ErrorFunction, ErrorModel, ModelLayout, Representation, Squareness, Travel};
+use volcal_sim::controller::{bracket, VolumetricCompensation};
 
 /// volcal's own bound on the records of one axis (the ISG kernel's bound is the configured
 /// `vol_comp[i].max_records`, which README.txt says to set): a table this long at 0.01 mm
@@ -137,4 +138,182 @@ pub fn interpolation_residual(model: &ErrorModel, tables: &[IsgTable], step_m: f
         // The controller removes all of the error but what its tables lost.
         lost - model.error(x, probe)
     })
+}
+
+/// Reads `isg_x.csv`, `isg_y.csv`, `isg_z.csv` from `dir` (as [`IsgTable::text`] writes them) as
+/// the volumetric compensation an ISG kernel configured with `topology` applies
+/// ([`VolumetricCompensation`]): the functions linear between the nodes, which must be evenly
+/// spaced (`Interpolation GRID`), squareness from the `#` section. Read from the text alone, as
+/// the controller reads it; errors name the file and line.
+pub fn read_isg(dir: &Path, topology: volcal::Topology) -> Result<VolumetricCompensation> {
+    let mut columns: Vec<(Vec<f64>, Vec<[f64; 6]>)> = Vec::new();
+    let mut squareness: Vec<(Squareness, f64)> = Vec::new();
+    for a in Axis::ALL {
+        let path = dir.join(format!("isg_{}.csv", a.letter().to_ascii_lowercase()));
+        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let (nodes, values, sq) = parse_isg(&text, a).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        columns.push((nodes, values));
+        squareness.extend(sq);
+    }
+    let travel = Travel::new(
+        [columns[0].0[0], *columns[0].0.last().unwrap()],
+        [columns[1].0[0], *columns[1].0.last().unwrap()],
+        [columns[2].0[0], *columns[2].0.last().unwrap()],
+    );
+    let reprs = std::array::from_fn(|i| Representation::Table { nodes: columns[i / 6].0.len() });
+    let mut model = ErrorModel::zero(ModelLayout::new(topology, travel, reprs));
+    for (a, (_, values)) in columns.iter().enumerate() {
+        for m in 0..6 {
+            let c = model.coeffs_mut(ErrorFunction::from_index(a * 6 + m));
+            for (ci, v) in c.iter_mut().zip(values) {
+                *ci = v[m];
+            }
+        }
+    }
+    for (s, v) in squareness {
+        model.set_squareness(s, v);
+    }
+    Ok(VolumetricCompensation { tables: model })
+}
+
+/// One axis's file: nodes (metres), the six component errors at each (metres, radians), and the
+/// squareness records. Errors say the line.
+#[allow(clippy::type_complexity)]
+fn parse_isg(text: &str, a: Axis) -> Result<(Vec<f64>, Vec<[f64; 6]>, Vec<(Squareness, f64)>)> {
+    let k = a.letter();
+    let names: Vec<String> = (0..6).map(|m| ErrorFunction::from_index(a.index() * 6 + m).name()).collect();
+    let want = format!("{k} {}", names.join(" "));
+    let lines =
+        text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty() && !l.starts_with("//"));
+    let (mut nodes, mut values, mut squareness, mut at_line) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // Sections: the component table, then after each `#` a header and records.
+    let mut header: Option<Vec<String>> = None;
+    let mut in_table = true;
+    for (n, l) in lines {
+        if l == "#" {
+            (header, in_table) = (None, false);
+            continue;
+        }
+        let fields: Vec<&str> = l.split_whitespace().collect();
+        let Some(h) = &header else {
+            if in_table && fields.join(" ") != want {
+                bail!("line {n}: header {l:?}, expected {want:?}");
+            }
+            header = Some(fields.iter().map(|s| s.to_string()).collect());
+            continue;
+        };
+        if fields.len() != h.len() {
+            bail!("line {n}: {} values under a header of {} columns ({})", fields.len(), h.len(), h.join(" "));
+        }
+        let v: Vec<f64> = fields
+            .iter()
+            .zip(h)
+            .map(|(f, name)| {
+                f.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .with_context(|| format!("line {n}: {name} is not a number: {f:?}"))
+            })
+            .collect::<Result<_>>()?;
+        if in_table {
+            // Position and translations in mm, rotations in rad.
+            nodes.push(v[0] * 1e-3);
+            at_line.push(n);
+            values.push([v[1] * 1e-3, v[2] * 1e-3, v[3] * 1e-3, v[4], v[5], v[6]]);
+        } else {
+            for (name, x) in h.iter().zip(v) {
+                let s = Squareness::ALL
+                    .into_iter()
+                    .find(|s| isg_name(*s) == name && s.axis() == a)
+                    .with_context(|| format!("line {n}: {name:?} is not a position error of the {k} axis"))?;
+                squareness.push((s, x));
+            }
+        }
+    }
+    if nodes.len() < 2 {
+        bail!("{} records; a table needs at least 2", nodes.len());
+    }
+    let step = (nodes[nodes.len() - 1] - nodes[0]) / (nodes.len() - 1) as f64;
+    if let Some(i) = (1..nodes.len()).find(|&i| ((nodes[i] - nodes[i - 1]) - step).abs() > 1e-9 + 1e-9 * step.abs()) {
+        bail!(
+            "line {}: position {} mm breaks the even spacing of {} mm (Interpolation GRID needs evenly spaced, ascending records)",
+            at_line[i],
+            nodes[i] * 1e3,
+            step * 1e3
+        );
+    }
+    if !(step > 0.0) {
+        bail!("positions must ascend");
+    }
+    Ok((nodes, values, squareness))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn model() -> ErrorModel {
+        let layout = ModelLayout::uniform(
+            "XFYZ".parse().unwrap(),
+            Travel::new([0.0, 0.8], [0.0, 0.5], [-0.5, 0.0]),
+            Representation::BSpline { intervals: 8 },
+        );
+        volcal_sim::random_truth(layout, &Default::default(), &mut rand_chacha::ChaCha8Rng::seed_from_u64(3))
+    }
+
+    fn written(model: &ErrorModel, step_m: f64, name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("volcal-isg-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for t in isg(model, step_m).unwrap() {
+            let file = dir.join(format!("isg_{}.csv", t.axis.letter().to_ascii_lowercase()));
+            std::fs::write(file, t.text("test")).unwrap();
+        }
+        dir
+    }
+
+    #[test]
+    fn the_tables_read_back_are_the_model_at_the_nodes_and_linear_between() {
+        let m = model();
+        let dir = written(&m, 0.05, "roundtrip");
+        let c = read_isg(&dir, m.layout.topology.clone()).unwrap();
+        for f in ErrorFunction::all() {
+            let [lo, hi] = m.layout.travel.range(f.axis);
+            // Every other point a node (the files' resolution: 1e-12 m or rad), the others
+            // half-way, where a controller reads the mean of the two nodes.
+            let intervals = ((hi - lo) / 0.05).round() as usize;
+            let q = |k: usize| lo + (hi - lo) * k as f64 / (2 * intervals) as f64;
+            for k in 0..=2 * intervals {
+                let read = c.tables.function_value(f, q(k));
+                let want = if k % 2 == 0 {
+                    m.function_value(f, q(k))
+                } else {
+                    0.5 * (m.function_value(f, q(k - 1)) + m.function_value(f, q(k + 1)))
+                };
+                assert!((read - want).abs() < 1e-12, "{} at {}: {read} vs {want}", f.name(), q(k));
+            }
+        }
+        for s in Squareness::ALL {
+            assert!((c.tables.squareness(s) - m.squareness(s)).abs() <= 0.5e-12, "{}", s.name());
+        }
+        // The controller removes the error to second order where the tables are exact.
+        let (x, p) = (Point3::new(0.4, 0.2, -0.1), Vector3::new(0.0, 0.0, -0.15));
+        let left = m.error(&x, &p) + c.at(&x, &p);
+        assert!(left.norm() < 0.02 * m.error(&x, &p).norm(), "{left}");
+    }
+
+    #[test]
+    fn a_bad_record_is_named_with_its_line() {
+        let m = model();
+        let dir = written(&m, 0.1, "bad");
+        let file = dir.join("isg_y.csv");
+        let text = std::fs::read_to_string(&file).unwrap().replacen("100.000000 ", "100.000000 x", 1);
+        std::fs::write(&file, text).unwrap();
+        let err = format!("{:#}", read_isg(&dir, m.layout.topology.clone()).err().unwrap());
+        assert!(err.contains("isg_y.csv: line 5: EXY is not a number"), "{err}");
+        let text = std::fs::read_to_string(&file).unwrap().replacen("Y EXY", "Y EYY", 1);
+        std::fs::write(&file, text).unwrap();
+        let err = format!("{:#}", read_isg(&dir, m.layout.topology.clone()).err().unwrap());
+        assert!(err.contains("isg_y.csv: line 3: header"), "{err}");
+    }
 }

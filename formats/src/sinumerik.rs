@@ -27,11 +27,13 @@
 //! CEC tables add up to the model's error along the three lines without counting it twice.
 
 use crate::compensation::{reference_lines, ReferenceLine};
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use nalgebra::{Point3, Vector3};
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
+use std::path::Path;
 use volcal::{Axis, ErrorModel};
-use volcal_sim::controller::interpolate;
+use volcal_sim::controller::{interpolate, AxisTable, AxisTableCompensation};
 
 /// Interpolation points of one table that every SINUMERIK volcal targets accepts (828D CEC: 200
 /// fixed; 808D EEC: 200). The 840D sl allows more through MD38000 / MD18342.
@@ -106,19 +108,6 @@ pub fn sinumerik(
     Ok((eec, cec))
 }
 
-/// The correction the EEC and CEC tables together apply at `x`, metres (EEC acts against its
-/// value, CEC with it).
-pub fn correction(eec: &[Table], cec: &[Table], x: &Point3<f64>) -> Vector3<f64> {
-    let mut c = Vector3::zeros();
-    for t in eec {
-        c[t.output.index()] -= t.value_at(x[t.input.index()]);
-    }
-    for t in cec {
-        c[t.output.index()] += t.value_at(x[t.input.index()]);
-    }
-    c
-}
-
 fn mm(v: f64) -> String {
     format!("{:.9}", v * 1e3)
 }
@@ -182,4 +171,184 @@ pub fn cec_text(cec: &[Table], comment: &str) -> String {
     }
     out.push_str("M17\n");
     out
+}
+
+/// The controller's view of EEC and CEC tables: each table as the correction it adds (EEC
+/// against its value, CEC with it).
+pub fn controller(eec: &[Table], cec: &[Table]) -> AxisTableCompensation {
+    let tables = eec
+        .iter()
+        .map(|t| (t, -1.0))
+        .chain(cec.iter().map(|t| (t, 1.0)))
+        .map(|(t, sign)| AxisTable {
+            input: t.input,
+            output: t.output,
+            nominal_m: t.nominal_m.clone(),
+            correction_m: t.value_m.iter().map(|v| sign * v).collect(),
+        })
+        .collect();
+    AxisTableCompensation { tables }
+}
+
+/// Reads `eec.mpf` and `cec.mpf` from `dir` (as [`eec_text`] and [`cec_text`] write them) as a
+/// SINUMERIK applies them: the part-program assignments alone (`;` comments, `%_N_..._INI`,
+/// `CHANDATA`, `M17`), points at `_MIN + N * _STEP` up to `_MAX`. Errors name the file and
+/// line; table options volcal does not simulate (a direction-dependent or multiplied CEC table,
+/// modulo axes) are refused.
+pub fn read_sinumerik(dir: &Path) -> Result<AxisTableCompensation> {
+    let mut tables = Vec::new();
+    for (file, eec) in [("eec.mpf", true), ("cec.mpf", false)] {
+        let path = dir.join(file);
+        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let read = parse_tables(&text, eec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        tables.extend(read);
+    }
+    Ok(controller(
+        &tables.iter().filter(|(_, eec)| *eec).map(|(t, _)| t.clone()).collect::<Vec<_>>(),
+        &tables.iter().filter(|(_, eec)| !*eec).map(|(t, _)| t.clone()).collect::<Vec<_>>(),
+    ))
+}
+
+/// The tables of one file: `(table, is_eec)`.
+fn parse_tables(text: &str, eec: bool) -> Result<Vec<(Table, bool)>> {
+    // Per table key (EEC: axis name; CEC: table number): points and scalar settings.
+    let mut points: BTreeMap<String, BTreeMap<usize, f64>> = BTreeMap::new();
+    let mut settings: BTreeMap<(String, String), (usize, String)> = BTreeMap::new();
+    for (i, l) in text.lines().enumerate() {
+        let n = i + 1;
+        let l = l.split(';').next().unwrap_or("").trim();
+        if l.is_empty() || l.starts_with('%') || l == "CHANDATA(1)" || l == "M17" {
+            continue;
+        }
+        let (lhs, rhs) = l.split_once('=').with_context(|| format!("line {n}: not an assignment: {l:?}"))?;
+        let (name, args) = lhs
+            .strip_suffix(']')
+            .and_then(|x| x.split_once('['))
+            .with_context(|| format!("line {n}: no [index] in {lhs:?}"))?;
+        let args: Vec<&str> = args.split(',').map(str::trim).collect();
+        let prefix = if eec { "$AA_ENC_COMP" } else { "$AN_CEC" };
+        let Some(field) = name.strip_prefix(prefix) else {
+            bail!("line {n}: {name} is not a {} variable", if eec { "EEC ($AA_ENC_COMP)" } else { "CEC ($AN_CEC)" });
+        };
+        // EEC: [encoder, N, AXi] for points, [encoder, AXi] for settings; CEC: [t, N] / [t].
+        let (key, index) = match (eec, field.is_empty(), args.as_slice()) {
+            (true, true, [_, k, ax]) => (ax.to_string(), Some(k)),
+            (true, false, [_, ax]) => (ax.to_string(), None),
+            (false, true, [t, k]) => (t.to_string(), Some(k)),
+            (false, false, [t]) => (t.to_string(), None),
+            _ => bail!("line {n}: unexpected indices [{}] for {name}", args.join(",")),
+        };
+        match index {
+            Some(k) => {
+                let k: usize = k.parse().with_context(|| format!("line {n}: point index {k:?} is not a number"))?;
+                let v: f64 = rhs
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .with_context(|| format!("line {n}: value {rhs:?} is not a number"))?;
+                points.entry(key).or_default().insert(k, v * 1e-3);
+            }
+            None => {
+                settings.insert((key, field.to_string()), (n, rhs.trim().to_string()));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (key, pts) in points {
+        let get = |f: &str| -> Result<(usize, String)> {
+            settings.get(&(key.clone(), f.to_string())).cloned().with_context(|| format!("table {key}: no {f}"))
+        };
+        let number = |f: &str| -> Result<f64> {
+            let (n, v) = get(f)?;
+            v.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .with_context(|| format!("line {n}: {f} {v:?} is not a number"))
+        };
+        let axis = |v: &str, n: usize| -> Result<Axis> {
+            let v = v.trim_start_matches('(').trim_end_matches(')');
+            Axis::ALL
+                .into_iter()
+                .find(|a| axis_name(*a) == v)
+                .with_context(|| format!("line {n}: axis {v:?} is none of AX1, AX2, AX3"))
+        };
+        let (input, output) = if eec {
+            let a = axis(&key, 0).with_context(|| format!("EEC table of {key}"))?;
+            (a, a)
+        } else {
+            let (ni, vi) = get("_INPUT_AXIS")?;
+            let (no, vo) = get("_OUTPUT_AXIS")?;
+            for f in ["_DIRECTION", "_MULT_BY_TABLE"] {
+                if let Ok((n, v)) = get(f) {
+                    if v != "0" {
+                        bail!("line {n}: {f} = {v}; volcal simulates only 0 (both directions, not multiplied)");
+                    }
+                }
+            }
+            (axis(&vi, ni)?, axis(&vo, no)?)
+        };
+        if let Ok((n, v)) = get("_IS_MODULO") {
+            if v != "0" {
+                bail!("line {n}: _IS_MODULO = {v}; modulo axes are not simulated");
+            }
+        }
+        let (step, min, max) = (number("_STEP")? * 1e-3, number("_MIN")? * 1e-3, number("_MAX")? * 1e-3);
+        let count = pts.len();
+        if pts.keys().copied().ne(0..count) {
+            bail!("table {key}: point indices are not 0..{}", count - 1);
+        }
+        if !(step > 0.0) || ((min + step * (count - 1) as f64) - max).abs() > 1e-9 {
+            bail!(
+                "table {key}: {count} points from {} mm in steps of {} mm do not end at _MAX {} mm",
+                min * 1e3,
+                step * 1e3,
+                max * 1e3
+            );
+        }
+        let nominal_m = (0..count).map(|k| min + step * k as f64).collect();
+        out.push((Table { input, output, nominal_m, value_m: pts.into_values().collect() }, eec));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use volcal::{ModelLayout, Representation, Travel};
+
+    #[test]
+    fn the_files_read_back_are_the_tables_the_export_computed() {
+        let layout = ModelLayout::uniform(
+            "FXYZ".parse().unwrap(),
+            Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            Representation::BSpline { intervals: 8 },
+        );
+        let m = volcal_sim::random_truth(layout, &Default::default(), &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
+        let (point, p) = (Point3::new(0.5, 0.4, -0.3), Vector3::zeros());
+        let (eec, cec) = sinumerik(&m, 0.02, &point, &p).unwrap();
+        let dir = std::env::temp_dir().join(format!("volcal-sinumerik-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("eec.mpf"), eec_text(&eec, [0.0; 3], "test")).unwrap();
+        std::fs::write(dir.join("cec.mpf"), cec_text(&cec, "test")).unwrap();
+        let nc = read_sinumerik(&dir).unwrap();
+        let want = controller(&eec, &cec);
+        assert_eq!(nc.tables.len(), 9);
+        for x in [Point3::new(0.13, 0.71, -0.05), Point3::new(0.5, 0.4, -0.3), Point3::new(0.99, 0.0, -0.6)] {
+            assert!((nc.at(&x) - want.at(&x)).norm() < 1e-12, "{x}");
+        }
+        // Along the reference lines EEC and CEC together remove the model's error (to the
+        // linear interpolation between 20 mm points).
+        for x in [Point3::new(0.21, 0.4, -0.3), Point3::new(0.5, 0.63, -0.3), Point3::new(0.5, 0.4, -0.47)] {
+            let left = m.error(&x, &p) + nc.at(&x);
+            assert!(left.norm() < 0.05e-6, "{x}: {left}");
+        }
+        // A table option volcal does not simulate is refused with its line.
+        let text =
+            std::fs::read_to_string(dir.join("cec.mpf")).unwrap().replacen("_DIRECTION[2]=0", "_DIRECTION[2]=1", 1);
+        std::fs::write(dir.join("cec.mpf"), text).unwrap();
+        let err = format!("{:#}", read_sinumerik(&dir).err().unwrap());
+        assert!(err.contains("cec.mpf: line") && err.contains("_DIRECTION = 1"), "{err}");
+    }
 }
