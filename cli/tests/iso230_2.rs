@@ -1,4 +1,4 @@
-//! `volcal iso230-2`: the figures of ISO 230-2:2014 on two real published tests (against the
+//! `volcal iso230-2`: the figures of ISO 230-2:2014 on three real published tests (against the
 //! numbers their source printed, `tests/data/iso230_2/README.md`), on a case small enough to
 //! compute by hand, and the messages for bad input (file and line).
 
@@ -103,6 +103,44 @@ fn ess_mcu1025_2021_matches_the_published_report() {
     ];
     let bad: Vec<String> = published.iter().filter_map(|(k, v, u)| check(&j, k, v, *u)).collect();
     assert!(bad.is_empty(), "{}\n{out}", bad.join("\n"));
+}
+
+/// An OWIS stage measured against an RLS encoder (owis_openloop_RLS.md of
+/// anderssandstrom/ecmc_cfg_tool, PSI, 2026). Its input table is printed to 5 decimals, coarser
+/// than the values its figures came from, so a figure may differ by one in its last digit (README
+/// in tests/data/iso230_2). Its E line is the standard's range over both directions and matches;
+/// its R line is `max(sqrt(2 s↑² + 2 s↓² + B²), R↑, R↓)`, not ISO 230-2's (its author replaced
+/// that formula by the standard's a week later), so R is checked through R↑ and R↓ only.
+#[test]
+fn owis_rls_2026_matches_the_published_report() {
+    let dir = scratch("iso230-2-owis");
+    let (j, out) = evaluate(&data("ecmc_owis_rls.csv"), &dir);
+    let published = [
+        ("A", "0.01504", 1.0),
+        ("E", "0.01368", 0.0),
+        ("M", "0.01063", 0.0),
+        ("B", "0.00352", 0.0),
+        ("B_mean", "-0.00290", 0.0),
+        // "Unidirectional repeatability": the larger of R↑ and R↓.
+        ("R_down", "0.00190", 1.0),
+    ];
+    let bad: Vec<String> = published.iter().filter_map(|(k, v, u)| check(&j, k, v, *u)).collect();
+    assert!(bad.is_empty(), "{}\n{out}", bad.join("\n"));
+    // The per-target table: mean bidirectional deviation and reversal value, each to its digits.
+    let table = [
+        ("-0.00161", "-0.00225"),
+        ("-0.00087", "-0.00269"),
+        ("0.00035", "-0.00295"),
+        ("0.00089", "-0.00269"),
+        ("-0.00322", "-0.00308"),
+        ("-0.00245", "-0.00298"),
+        ("0.00741", "-0.00303"),
+        ("-0.00112", "-0.00352"),
+    ];
+    for (t, (x, b)) in j["targets"].as_array().unwrap().iter().zip(table) {
+        assert!(same_digits(um(t, "mean_bidirectional") * 1e-3, x, 1.0), "mean {t} vs {x}");
+        assert!(same_digits(um(t, "B_i") * 1e-3, b, 1.0), "B_i {t} vs {b}");
+    }
 }
 
 /// Two targets, three runs each way, numbers chosen so that everything is exact:
