@@ -401,8 +401,8 @@ fn grid_compensation_removes_the_volumetric_error() {
 /// `volcal_sim::controller::VolumetricCompensation`) over the volume at each of `tools`, on the
 /// simulated truth, rigidly aligned; then measure the compensated machine with new noise
 /// (`volcal simulate --compensation`) and identify it again. Per tool: `(max before, max
-/// after, rms before, rms after, max identified again)`, metres.
-fn isg_closed_loop(machine: &str, seed: u64, tools: &[[f64; 3]]) -> Vec<(f64, f64, f64, f64, f64)> {
+/// after, rms before, rms after, max identified again, largest U95 of the model's map)`, metres.
+fn isg_closed_loop(machine: &str, seed: u64, tools: &[[f64; 3]]) -> Vec<(f64, f64, f64, f64, f64, f64)> {
     use nalgebra::Vector3;
     let c = Campaign::measure("isg", machine, None, seed);
     let comp = c.export("isg", &[]);
@@ -418,9 +418,27 @@ fn isg_closed_loop(machine: &str, seed: u64, tools: &[[f64; 3]]) -> Vec<(f64, f6
             let after: Vec<Vector3<f64>> = points.iter().zip(&before).map(|(x, e)| e + isg.at(x, &p)).collect();
             let identified: Vec<Vector3<f64>> = points.iter().map(|x| again.error(x, &p)).collect();
             let (b, a) = (volcal_tests::rigid_aligned(&points, &before), volcal_tests::rigid_aligned(&points, &after));
-            (b.0, a.0, b.1, a.1, volcal_tests::rigid_aligned(&points, &identified).0)
+            let u95 = largest_u95(&c.model, &c.dir, &points, tool);
+            (b.0, a.0, b.1, a.1, volcal_tests::rigid_aligned(&points, &identified).0, u95)
         })
         .collect()
+}
+
+/// The largest expanded uncertainty (`volcal predict`'s u95) of `model`'s volumetric error at
+/// `points` with probe offset `tool`, metres.
+fn largest_u95(model: &Path, dir: &Path, points: &[nalgebra::Point3<f64>], tool: &[f64; 3]) -> f64 {
+    let mut csv = String::from("x_m,y_m,z_m,px_m,py_m,pz_m\n");
+    for x in points {
+        csv.push_str(&format!("{},{},{},{},{},{}\n", x.x, x.y, x.z, tool[0], tool[1], tool[2]));
+    }
+    let (input, output) = (dir.join("u95_points.csv"), dir.join("u95_pred.csv"));
+    std::fs::write(&input, csv).unwrap();
+    run(&[&"predict", &model, &input, &"--out", &output]);
+    let text = std::fs::read_to_string(&output).unwrap();
+    let col = text.lines().next().unwrap().split(',').position(|h| h == "u95_m").expect("a u95_m column");
+    let u95: Vec<f64> = text.lines().skip(1).map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
+    assert_eq!(u95.len(), points.len(), "every point determined");
+    u95.into_iter().fold(0.0, f64::max)
 }
 
 #[test]
@@ -431,9 +449,9 @@ fn isg_compensation_removes_the_volumetric_error_at_every_tool() {
         ("demo_cmm.yaml", 11, [[0.0, 0.0, -0.25], [0.12, 0.0, -0.10]]),
         ("machine_tool_xfyz.yaml", 23, [[0.0, 0.0, -0.15], [0.0, 0.12, -0.10]]),
     ] {
-        for (tool, (mb, ma, rb, ra, mi)) in tools.iter().zip(isg_closed_loop(machine, seed, &tools)) {
+        for (tool, (mb, ma, rb, ra, mi, u95)) in tools.iter().zip(isg_closed_loop(machine, seed, &tools)) {
             eprintln!(
-                "{machine} ISG, tool {tool:?} m: volumetric error, rigidly aligned: max {:.2} um before, {:.2} um after ({:.1} %), identified again {:.2} um ({:.1} %); RMS {:.2} um before, {:.2} um after ({:.1} %)",
+                "{machine} ISG, tool {tool:?} m: volumetric error, rigidly aligned: max {:.2} um before, {:.2} um after ({:.1} %), identified again {:.2} um ({:.1} %); RMS {:.2} um before, {:.2} um after ({:.1} %); largest U95 of the map {:.2} um",
                 mb * 1e6,
                 ma * 1e6,
                 ma / mb * 100.0,
@@ -442,6 +460,7 @@ fn isg_compensation_removes_the_volumetric_error_at_every_tool() {
                 rb * 1e6,
                 ra * 1e6,
                 ra / rb * 100.0,
+                u95 * 1e6,
             );
             assert!(ma <= 0.15 * mb, "{machine} tool {tool:?}: max after {:.1} % of before", ma / mb * 100.0);
         }
