@@ -196,21 +196,16 @@ pub fn controller(eec: &[Table], cec: &[Table]) -> AxisTableCompensation {
 /// line; table options volcal does not simulate (a direction-dependent or multiplied CEC table,
 /// modulo axes) are refused.
 pub fn read_sinumerik(dir: &Path) -> Result<AxisTableCompensation> {
-    let mut tables = Vec::new();
-    for (file, eec) in [("eec.mpf", true), ("cec.mpf", false)] {
+    let read = |file: &str, eec: bool| -> Result<Vec<Table>> {
         let path = dir.join(file);
         let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-        let read = parse_tables(&text, eec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        tables.extend(read);
-    }
-    Ok(controller(
-        &tables.iter().filter(|(_, eec)| *eec).map(|(t, _)| t.clone()).collect::<Vec<_>>(),
-        &tables.iter().filter(|(_, eec)| !*eec).map(|(t, _)| t.clone()).collect::<Vec<_>>(),
-    ))
+        parse_tables(&text, eec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    };
+    Ok(controller(&read("eec.mpf", true)?, &read("cec.mpf", false)?))
 }
 
-/// The tables of one file: `(table, is_eec)`.
-fn parse_tables(text: &str, eec: bool) -> Result<Vec<(Table, bool)>> {
+/// The tables of one file (`eec`: EEC tables, else CEC).
+fn parse_tables(text: &str, eec: bool) -> Result<Vec<Table>> {
     // Per table key (EEC: axis name; CEC: table number): points and scalar settings.
     let mut points: BTreeMap<String, BTreeMap<usize, f64>> = BTreeMap::new();
     let mut settings: BTreeMap<(String, String), (usize, String)> = BTreeMap::new();
@@ -307,7 +302,7 @@ fn parse_tables(text: &str, eec: bool) -> Result<Vec<(Table, bool)>> {
             );
         }
         let nominal_m = (0..count).map(|k| min + step * k as f64).collect();
-        out.push((Table { input, output, nominal_m, value_m: pts.into_values().collect() }, eec));
+        out.push(Table { input, output, nominal_m, value_m: pts.into_values().collect() });
     }
     Ok(out)
 }
