@@ -174,14 +174,19 @@ struct ClosedLoop {
 /// A copy of the machine file `machine` in `dir` whose simulated instruments are noise-free
 /// (no positioning repeatability, no interferometer noise): `volcal validate --truth` with it
 /// measures the simulated machine exactly.
-fn noise_free(machine: &Path, dir: &Path) -> std::path::PathBuf {
+fn noise_free(machine: &Path, dir: &Path) -> PathBuf {
+    machine_variant(machine, &dir.join("noise_free_machine.yaml"), |sim| {
+        sim["repeatability_m"] = 0.0.into();
+        sim["interferometer"]["noise_m"] = 0.0.into();
+    })
+}
+
+/// Writes to `out` the machine file `machine` with its `simulation` section changed by `edit`.
+fn machine_variant(machine: &Path, out: &Path, edit: impl FnOnce(&mut serde_yaml::Value)) -> PathBuf {
     let mut m: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(machine).unwrap()).unwrap();
-    let sim = &mut m["simulation"];
-    sim["repeatability_m"] = 0.0.into();
-    sim["interferometer"]["noise_m"] = 0.0.into();
-    let out = dir.join("noise_free_machine.yaml");
-    std::fs::write(&out, serde_yaml::to_string(&m).unwrap()).unwrap();
-    out
+    edit(&mut m["simulation"]);
+    std::fs::write(out, serde_yaml::to_string(&m).unwrap()).unwrap();
+    out.to_path_buf()
 }
 
 /// The LinuxCNC closed loop on one machine, measured by the campaign `plan` (a file in
@@ -312,14 +317,12 @@ fn machine_tool_closed_loop(machine: &str, seeds: &[u64]) {
 /// kept at most 1.0 %).
 #[test]
 fn linuxcnc_compensation_of_the_machine_tool_with_scale_errors() {
-    let dir = scratch("closed-loop-scale-machine");
     let file = repo_root().join("launch_configs/machines/machine_tool_xfyz.yaml");
-    let mut m: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
-    let truth = &mut m["simulation"]["truth"];
-    truth["degree"] = 1.into();
-    truth["positioning_m"] = 1.5e-6.into();
-    let machine = dir.join("machine_tool_linear_errors.yaml");
-    std::fs::write(&machine, serde_yaml::to_string(&m).unwrap()).unwrap();
+    let out = scratch("closed-loop-scale-machine").join("machine_tool_linear_errors.yaml");
+    let machine = machine_variant(&file, &out, |sim| {
+        sim["truth"]["degree"] = 1.into();
+        sim["truth"]["positioning_m"] = 1.5e-6.into();
+    });
     machine_tool_closed_loop(machine.to_str().unwrap(), &[31, 36, 37]);
 }
 
@@ -339,6 +342,20 @@ fn volume_points(travel: &volcal::Travel) -> Vec<nalgebra::Point3<f64>> {
         }
     }
     points
+}
+
+/// The error of `truth` at `points` with tool offset `p` before and after a controller adds
+/// `correction` to the command, each with its best-fitting rigid motion removed
+/// ([`volcal_tests::rigid_aligned`]): `((max, rms) before, (max, rms) after)`, metres.
+fn compensated(
+    truth: &volcal::ErrorModel,
+    points: &[nalgebra::Point3<f64>],
+    p: &nalgebra::Vector3<f64>,
+    correction: impl Fn(&nalgebra::Point3<f64>) -> nalgebra::Vector3<f64>,
+) -> ((f64, f64), (f64, f64)) {
+    let before: Vec<_> = points.iter().map(|x| truth.error(x, p)).collect();
+    let after: Vec<_> = points.iter().zip(&before).map(|(x, e)| e + correction(x)).collect();
+    (volcal_tests::rigid_aligned(points, &before), volcal_tests::rigid_aligned(points, &after))
 }
 
 /// The grid closed loop on one machine: identify, export the volumetric grid at tool point
@@ -364,12 +381,9 @@ fn grid_closed_loop(machine: &str, seed: u64, tool: [f64; 3]) -> (f64, f64, f64,
         .skip(1)
         .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap() * 1e-6)
         .fold(0.0, f64::max);
-    let probe = Vector3::from(tool);
     let points = volume_points(&truth.layout.travel);
-    let before: Vec<Vector3<f64>> = points.iter().map(|x| truth.error(x, &probe)).collect();
     // The controller adds the grid's correction to the command (volcal_sim::controller).
-    let after: Vec<Vector3<f64>> = points.iter().zip(&before).map(|(x, e)| e + Vector3::from(grid.at(x))).collect();
-    let (b, a) = (volcal_tests::rigid_aligned(&points, &before), volcal_tests::rigid_aligned(&points, &after));
+    let (b, a) = compensated(&truth, &points, &Vector3::from(tool), |x| Vector3::from(grid.at(x)));
     (b.0, a.0, b.1, a.1, u95)
 }
 
@@ -414,10 +428,8 @@ fn isg_closed_loop(machine: &str, seed: u64, tools: &[[f64; 3]]) -> Vec<(f64, f6
         .iter()
         .map(|tool| {
             let p = Vector3::from(*tool);
-            let before: Vec<Vector3<f64>> = points.iter().map(|x| truth.error(x, &p)).collect();
-            let after: Vec<Vector3<f64>> = points.iter().zip(&before).map(|(x, e)| e + isg.at(x, &p)).collect();
+            let (b, a) = compensated(&truth, &points, &p, |x| isg.at(x, &p));
             let identified: Vec<Vector3<f64>> = points.iter().map(|x| again.error(x, &p)).collect();
-            let (b, a) = (volcal_tests::rigid_aligned(&points, &before), volcal_tests::rigid_aligned(&points, &after));
             let u95 = largest_u95(&c.model, &c.dir, &points, tool);
             (b.0, a.0, b.1, a.1, volcal_tests::rigid_aligned(&points, &identified).0, u95)
         })
