@@ -141,6 +141,24 @@ pub trait Effect: Sync {
     fn param_names(&self) -> Vec<String>;
     /// Regressors `g_k` of one reading.
     fn regressors(&self, ctx: &ObsContext<'_>, out: &mut [f64]);
+
+    /// The nonzero regressors of one reading as (column, value), in increasing column order
+    /// (`idx` and `val` are cleared first). Extension tests ([`Fit::score_parts`]) visit every
+    /// reading with them, so an effect whose rows are sparse (a finer basis: a few columns of
+    /// many) should give them directly; the default filters [`Effect::regressors`] (`dense`:
+    /// scratch of `param_names().len()`).
+    fn sparse_regressors(&self, ctx: &ObsContext<'_>, dense: &mut [f64], idx: &mut Vec<usize>, val: &mut Vec<f64>) {
+        dense.iter_mut().for_each(|v| *v = 0.0);
+        self.regressors(ctx, dense);
+        idx.clear();
+        val.clear();
+        for (j, &v) in dense.iter().enumerate() {
+            if v != 0.0 {
+                idx.push(j);
+                val.push(v);
+            }
+        }
+    }
 }
 
 /// Estimated tracer station.
@@ -493,11 +511,11 @@ impl<'a> Fit<'a> {
         let parallel = lens.sum::<usize>() >= halves::PARALLEL_FROM;
         let (mut sums, other) = halves::both(parallel, || acc(first), || acc(second));
         sums.add(&other);
-        let ScoreSums { b, g2, c } = sums;
+        let ScoreSums { bt, g2, c } = sums;
         parts
             .iter()
             .map(|r| {
-                let b = Mat::from_fn(n, r.len(), |i, j| b[i * k + r.start + j]);
+                let b = Mat::from_fn(n, r.len(), |i, j| bt[(r.start + j) * n + i]);
                 let g2 = Mat::from_fn(r.len(), r.len(), |i, j| g2[(r.start + i) * k + r.start + j]);
                 self.schur_score(&b, &g2, &c[r.clone()])
             })
@@ -544,10 +562,10 @@ impl<'a> Fit<'a> {
 }
 
 /// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:
-/// `b` (model x extension, row-major `n x k`), `g2` (extension x extension, row-major `k x k`,
-/// within each part only) and the gradient `c`, each group's origin eliminated.
+/// `bt` (extension x model, row-major `k x n`: `B^T`), `g2` (extension x extension, row-major
+/// `k x k`, within each part only) and the gradient `c`, each group's origin eliminated.
 struct ScoreSums {
-    b: Vec<f64>,
+    bt: Vec<f64>,
     g2: Vec<f64>,
     c: Vec<f64>,
 }
@@ -564,109 +582,83 @@ impl ScoreSums {
         parts: &[std::ops::Range<usize>],
     ) -> ScoreSums {
         let p = &fit.prob;
-        let mut b = vec![0.0; n * k];
+        let mut bt = vec![0.0; k * n];
         let mut g2 = vec![0.0; k * k];
         let mut c = vec![0.0; k];
-        let mut reg = vec![0.0; k];
+        let mut dense = vec![0.0; k];
         // Part of each extension column (columns outside every part: none).
         let mut part_of = vec![usize::MAX; k];
         for (q, r) in parts.iter().enumerate() {
             part_of[r.clone()].iter_mut().for_each(|x| *x = q);
         }
-        let mut nz: Vec<usize> = Vec::new();
-        let mut wreg: Vec<f64> = Vec::new();
-        let mut sa = vec![0.0; n];
-        let mut sg = vec![0.0; k];
-        let mut touched: Vec<usize> = Vec::new();
-        let mut is_touched = vec![false; n];
-        let mut sgn: Vec<usize> = Vec::new();
-        let mut is_sgn = vec![false; k];
-        for &gi in groups {
+        let (mut nz, mut reg, mut wreg) = (Vec::new(), Vec::new(), Vec::new());
+        let mut runs: Vec<normal::Run> = Vec::new();
+        // Per group, the weighted column sums of model and extension over sqrt(W): the origins
+        // are eliminated at the end by one product each, `B^T -= Sg Sa^T`, `G2 -= Sg Sg^T`.
+        let mut sa = Mat::<f64>::zeros(n, groups.len());
+        let mut sg = Mat::<f64>::zeros(k, groups.len());
+        for (q, &gi) in groups.iter().enumerate() {
             let g = &p.obs.groups[gi];
             let mut wsum = 0.0;
             for i in g.range() {
                 let w = 1.0 / (p.sigma[i] * p.sigma[i]);
                 wsum += w;
                 let (ri, rv) = rows.row(i);
+                let sac = sa.col_as_slice_mut(q);
                 for (&col, &v) in ri.iter().zip(rv) {
-                    if !is_touched[col] {
-                        is_touched[col] = true;
-                        touched.push(col);
-                    }
-                    sa[col] += w * v;
+                    sac[col] += w * v;
                 }
                 let ctx =
                     ObsContext { obs: p.obs, i, group: g, direction: rows.direction(i), actual: fit.state.actual[i] };
-                reg.iter_mut().for_each(|v| *v = 0.0);
-                effect.regressors(&ctx, &mut reg);
-                nz.clear();
-                nz.extend((0..k).filter(|&j| reg[j] != 0.0));
+                effect.sparse_regressors(&ctx, &mut dense, &mut nz, &mut reg);
                 if nz.is_empty() {
                     continue;
                 }
                 wreg.clear();
-                wreg.extend(nz.iter().map(|&j| w * reg[j]));
+                wreg.extend(reg.iter().map(|&v| w * v));
                 let r = fit.solution.residuals[i];
+                let sgc = sg.col_as_slice_mut(q);
                 // `nz` is sorted and the parts are ranges: each part's columns are a run of it.
                 let mut run = 0;
                 while run < nz.len() {
-                    let q = part_of[nz[run]];
-                    let end = nz[run..].iter().position(|&j| part_of[j] != q).map_or(nz.len(), |e| run + e);
-                    let (js, ws) = (&nz[run..end], &wreg[run..end]);
-                    for (&j, &wr) in js.iter().zip(ws) {
-                        if !is_sgn[j] {
-                            is_sgn[j] = true;
-                            sgn.push(j);
-                        }
-                        sg[j] += wr;
+                    let part = part_of[nz[run]];
+                    let end = nz[run..].iter().position(|&j| part_of[j] != part).map_or(nz.len(), |e| run + e);
+                    for a in run..end {
+                        let (j, wr) = (nz[a], wreg[a]);
+                        sgc[j] += wr;
                         c[j] += wr * r;
-                        if q != usize::MAX {
+                        if part != usize::MAX {
                             let gj = &mut g2[j * k..(j + 1) * k];
-                            for &l in js {
-                                gj[l] += wr * reg[l];
+                            for b in run..end {
+                                gj[nz[b]] += wr * reg[b];
                             }
                         }
                     }
                     run = end;
                 }
-                for (&col, &v) in ri.iter().zip(rv) {
-                    let bc = &mut b[col * k..(col + 1) * k];
-                    for (&j, &wr) in nz.iter().zip(&wreg) {
-                        bc[j] += wr * v;
-                    }
-                }
+                normal::runs_of(ri, &mut runs);
+                normal::add_cross(&mut bt, n, &nz, &wreg, &runs, rv);
             }
-            // Eliminate the group origin: subtract (sum w a)(sum w g)^T / W and (sum w g)(sum w g)^T / W.
-            for &col in &touched {
-                let f = sa[col] / wsum;
-                let bc = &mut b[col * k..(col + 1) * k];
-                for &j in &sgn {
-                    bc[j] -= f * sg[j];
-                }
-                sa[col] = 0.0;
-                is_touched[col] = false;
-            }
-            for &j in &sgn {
-                let f = sg[j] / wsum;
-                let gj = &mut g2[j * k..(j + 1) * k];
-                for &l in &sgn {
-                    if part_of[l] == part_of[j] && part_of[j] != usize::MAX {
-                        gj[l] -= sg[l] * f;
-                    }
-                }
-            }
-            touched.clear();
-            for &j in &sgn {
-                sg[j] = 0.0;
-                is_sgn[j] = false;
-            }
-            sgn.clear();
+            let sw = wsum.sqrt();
+            sa.col_as_slice_mut(q).iter_mut().for_each(|v| *v /= sw);
+            sg.col_as_slice_mut(q).iter_mut().for_each(|v| *v /= sw);
         }
-        ScoreSums { b, g2, c }
+        // `bt`, row-major k x n, is B column-major (n x k).
+        let btm = faer::MatMut::from_column_major_slice_mut(&mut bt, n, k);
+        matmul(btm, Accum::Add, sa.as_ref(), sg.transpose(), -1.0, Par::Seq);
+        let gg = sg.as_ref() * sg.transpose();
+        for j in 0..k {
+            for l in 0..k {
+                if part_of[j] == part_of[l] && part_of[j] != usize::MAX {
+                    g2[j * k + l] -= gg[(j, l)];
+                }
+            }
+        }
+        ScoreSums { bt, g2, c }
     }
 
     fn add(&mut self, other: &ScoreSums) {
-        for (a, b) in [(&mut self.b, &other.b), (&mut self.g2, &other.g2), (&mut self.c, &other.c)] {
+        for (a, b) in [(&mut self.bt, &other.bt), (&mut self.g2, &other.g2), (&mut self.c, &other.c)] {
             a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
         }
     }

@@ -127,6 +127,12 @@ impl AxisKnots {
 pub fn positions_determine(basis: &Basis, positions: &[f64]) -> bool {
     let mut next = 0;
     'coefficient: for i in 0..basis.n_coeffs() {
+        // A cubic B-spline's coefficient `i` is zero below its first span, `i - 3`: the positions
+        // there need not be looked at.
+        if let Representation::BSpline { intervals } = basis.repr {
+            let start = basis.lo + basis.length() * i.saturating_sub(3) as f64 / intervals as f64;
+            next = next.max(positions.partition_point(|&q| q < start));
+        }
         while next < positions.len() {
             let q = positions[next];
             next += 1;
@@ -197,6 +203,18 @@ pub fn auto_layout(
     overrides: &[Option<Representation>; 18],
 ) -> (ModelLayout, [AxisKnots; 3], Smoothing) {
     let bound = positions_bound(&travel, positions, auto.max_intervals);
+    let (layout, knots) = auto_layout_within(topology, travel, &bound, auto, overrides);
+    (layout, knots, smoothing_for(overrides))
+}
+
+/// [`auto_layout`] for the knot bounds `bound` of [`positions_bound`].
+fn auto_layout_within(
+    topology: Topology,
+    travel: Travel,
+    bound: &[(usize, usize); 3],
+    auto: &Auto,
+    overrides: &[Option<Representation>; 18],
+) -> (ModelLayout, [AxisKnots; 3]) {
     let knots = Axis::ALL.map(|axis| {
         let (most, n) = bound[axis.index()];
         let intervals = most.min(auto.start_intervals.max(1));
@@ -204,7 +222,7 @@ pub fn auto_layout(
         AxisKnots { axis, positions: n, intervals, bound, tests: Vec::new() }
     });
     let layout = layout_with(&topology, travel, knots.clone().map(|k| k.intervals), overrides);
-    (layout, knots, smoothing_for(overrides))
+    (layout, knots)
 }
 
 /// A solve with `representation: auto` and what it chose.
@@ -234,8 +252,9 @@ pub fn solve_auto(
     overrides: &[Option<Representation>; 18],
 ) -> Result<AutoSolve, SolveError> {
     let positions = crate::identify::DataSummary::positions_of(&obs.x);
-    let (_, mut knots, mut smoothing) = auto_layout(topology.clone(), travel, &positions, auto, overrides);
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
+    let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
+    let mut smoothing = smoothing_for(overrides);
     // The previous round's solution, knots and partly determined null dimension: a refinement
     // the readings' geometry does not determine is undone.
     let mut previous: Option<(Solution, [AxisKnots; 3], usize)> = None;
@@ -419,6 +438,17 @@ impl Effect for Refinements<'_> {
             r.regressors(ctx, &mut out[range.clone()]);
         }
     }
+
+    fn sparse_regressors(&self, ctx: &ObsContext<'_>, _: &mut [f64], idx: &mut Vec<usize>, val: &mut Vec<f64>) {
+        idx.clear();
+        val.clear();
+        for (r, range) in self.parts.iter().zip(&self.ranges) {
+            r.visit(ctx, |j, v| {
+                idx.push(range.start + j);
+                val.push(v);
+            });
+        }
+    }
 }
 
 impl Effect for Refinement {
@@ -432,6 +462,13 @@ impl Effect for Refinement {
     }
 
     fn regressors(&self, ctx: &ObsContext<'_>, out: &mut [f64]) {
+        self.visit(ctx, |j, v| out[j] = v);
+    }
+}
+
+impl Refinement {
+    /// The nonzero regressors of one reading, in increasing column order.
+    fn visit(&self, ctx: &ObsContext<'_>, mut put: impl FnMut(usize, f64)) {
         let (x, p) = (ctx.obs.x[ctx.i], ctx.obs.p[ctx.i]);
         let n = self.basis.n_coeffs() / 2;
         let h = self.topology.lever_arm(self.axis, &x, &p);
@@ -450,7 +487,7 @@ impl Effect for Refinement {
             };
             let d = ctx.direction.dot(&v);
             for &(j, b) in &odd[..m] {
-                out[k * n + j] = d * b;
+                put(k * n + j, d * b);
             }
         }
     }

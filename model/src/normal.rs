@@ -29,6 +29,46 @@ pub(crate) fn runs_of(idx: &[usize], runs: &mut Vec<Run>) {
     }
 }
 
+/// Adds `w_j a` to row `j` of the row-major `k x n` matrix `bt` for every `(j, w_j)` of
+/// `(cols, weights)`: the cross products `G^T W A` of an extension's sparse row (already
+/// weighted) against a model row `a` given by `runs` over `vals`. Runs of 4 (a cubic
+/// B-spline's span) use the fixed-width kernel of [`Upper::add`].
+pub(crate) fn add_cross(bt: &mut [f64], n: usize, cols: &[usize], weights: &[f64], runs: &[Run], vals: &[f64]) {
+    struct Cross<'a> {
+        bt: &'a mut [f64],
+        n: usize,
+        cols: &'a [usize],
+        weights: &'a [f64],
+        runs: &'a [Run],
+        vals: &'a [f64],
+    }
+    impl pulp::WithSimd for Cross<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _simd: S) {
+            let n = self.n;
+            for (&j, &wj) in self.cols.iter().zip(self.weights) {
+                let dst = &mut self.bt[j * n..(j + 1) * n];
+                for r in self.runs {
+                    if r.len == 4 {
+                        let d: &mut [f64; 4] = (&mut dst[r.col..r.col + 4]).try_into().unwrap();
+                        let v: &[f64; 4] = (&self.vals[r.at..r.at + 4]).try_into().unwrap();
+                        d[0] += wj * v[0];
+                        d[1] += wj * v[1];
+                        d[2] += wj * v[2];
+                        d[3] += wj * v[3];
+                    } else {
+                        for (d, v) in dst[r.col..r.col + r.len].iter_mut().zip(&self.vals[r.at..r.at + r.len]) {
+                            *d += wj * v;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    pulp::Arch::new().dispatch(Cross { bt, n, cols, weights, runs, vals });
+}
+
 /// The six functions of one axis in a row: function `f` touches columns
 /// `col[f] .. col[f] + b.len()` with values `d[f] * b`.
 #[derive(Clone, Debug)]
@@ -241,6 +281,26 @@ mod tests {
             }
         }
         assert_eq!(m[(4, 4)], 0.0);
+    }
+
+    #[test]
+    fn cross_products_match_dense() {
+        let n = 12;
+        let idx = vec![0, 1, 2, 3, 5, 7, 8, 9, 10];
+        let vals: Vec<f64> = (0..idx.len()).map(|k| 0.3 + k as f64).collect();
+        let mut runs = Vec::new();
+        runs_of(&idx, &mut runs);
+        let (cols, weights) = (vec![1, 4], vec![2.0, -0.5]);
+        let k = 5;
+        let mut bt = vec![0.0; k * n];
+        add_cross(&mut bt, n, &cols, &weights, &runs, &vals);
+        for j in 0..k {
+            for i in 0..n {
+                let w = cols.iter().position(|&c| c == j).map_or(0.0, |p| weights[p]);
+                let a = idx.iter().position(|&c| c == i).map_or(0.0, |p| vals[p]);
+                assert_eq!(bt[j * n + i], w * a, "({j}, {i})");
+            }
+        }
     }
 
     #[test]

@@ -465,13 +465,28 @@ impl ReducedPenalty {
     /// parameter, since the readings cannot tell their roughness apart.
     pub fn overlapping_pairs(&self) -> Vec<(usize, usize)> {
         let q: Vec<Mat<f64>> = self.bt.iter().map(orthonormal).collect();
+        // Every pair's `Q_a^T Q_b` at once, as blocks of one Gram matrix.
+        let mut start = vec![0];
+        for qa in &q {
+            start.push(start.last().unwrap() + qa.ncols());
+        }
+        let all = Mat::from_fn(q.first().map_or(0, |m| m.nrows()), *start.last().unwrap(), |i, j| {
+            let g = start.partition_point(|&s| s <= j) - 1;
+            q[g][(i, j - start[g])]
+        });
+        let gram = all.transpose() * &all;
         let mut out = Vec::new();
         for a in 0..self.n_groups() {
             for b in a + 1..self.n_groups() {
                 if q[a].ncols() == 0 || q[b].ncols() == 0 {
                     continue;
                 }
-                let c = q[a].transpose() * &q[b];
+                let c = gram.submatrix(start[a], start[b], q[a].ncols(), q[b].ncols());
+                // The largest singular value is at most the Frobenius norm: pairs clearly apart
+                // need no decomposition.
+                if c.squared_norm_l2() < (1.0 - 1e-8) * (1.0 - 1e-8) {
+                    continue;
+                }
                 let cos_max = c.singular_values().ok().and_then(|s| s.first().copied()).unwrap_or(0.0);
                 if cos_max > 1.0 - 1e-8 {
                     out.push((a, b));
@@ -568,12 +583,14 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut iterations = 0;
     let mut converged = false;
     let mut grad = vec![0.0; ng];
-    let mut t = vec![0.0; ng];
+    // The traces `t_g` at `cur`, while they are known.
+    let mut t_cur: Option<Vec<f64>> = None;
     for it in 0..max_iter {
         iterations = it + 1;
         let lambda = lam(&rho);
         let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
-        t.copy_from_slice(&d.t);
+        let t = &d.t;
+        t_cur = Some(d.t.clone());
         for g in 0..ng {
             grad[g] = if active[g] { 0.5 * (lambda[g] * cur.e[g] + lambda[g] * t[g] - rp.rank[g] as f64) } else { 0.0 };
         }
@@ -620,6 +637,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
                     let moved = free.iter().map(|&g| (trial[g] - rho[g]).abs()).fold(0.0, f64::max);
                     rho = trial;
                     cur = e;
+                    t_cur = None;
                     accepted = moved > 1e-8;
                     break;
                 }
@@ -636,11 +654,11 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut lambda = lam(&rho);
     let mut at_upper = vec![false; ng];
     for _ in 0..8 {
-        let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
+        let t = t_cur.take().unwrap_or_else(|| traces(rp, cur.llt.L()));
         let mut changed = false;
         for g in (0..ng).filter(|&g| active[g]) {
             let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
-            let detail = rp.rank[g] as f64 - lambda[g] * d.t[g];
+            let detail = rp.rank[g] as f64 - lambda[g] * t[g];
             if detail < 0.9 * target {
                 // Far from the data, detail ~ 1 / lambda.
                 at_upper[g] = true;
@@ -654,6 +672,24 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         cur = evaluate(q, rp, &lambda)?;
     }
     Some(RemlResult { lambda, y: cur.y, iterations, converged, at_upper })
+}
+
+/// `t_g = tr(M^-1 P_g) = |L^-1 B_g^T|_F^2` per group, for `M = L L^T`: what the detail floor
+/// needs, without the rest of [`Derivatives`].
+fn traces(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>) -> Vec<f64> {
+    let solved = |bt: &Mat<f64>| {
+        let mut g = bt.clone();
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, g.as_mut(), faer::Par::Seq);
+        g.squared_norm_l2()
+    };
+    // The groups in two halves side by side ([`crate::halves`]).
+    let half = rp.bt.len() / 2;
+    let (a, b) = halves::both(
+        true,
+        || rp.bt[..half].iter().map(solved).collect::<Vec<f64>>(),
+        || rp.bt[half..].iter().map(solved).collect::<Vec<f64>>(),
+    );
+    a.into_iter().chain(b).collect()
 }
 
 /// What the gradient and Hessian of the REML criterion need at one point: `G_g = L^-1 B_g^T`,
