@@ -16,7 +16,7 @@ fn main() {
     let env = |k: &str, v: usize| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(v);
     let auto =
         Auto { start_intervals: env("AUTO_START", d.start_intervals), max_intervals: env("AUTO_MAX", d.max_intervals) };
-    println!("| case | seeds | auto map RMS um | oracle map RMS um | auto/oracle | actual/predicted | max abs z | abs z > 3 | interpolated: max abs z, abs z > 3 | not determined | solve s |");
+    println!("| case | seeds | auto map RMS um | oracle map RMS um | auto/oracle | actual/predicted (95 % over seeds) | max abs z | abs z > 3 | interpolated: max abs z, abs z > 3 | not determined | solve s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for case in suite() {
         if !case.label().contains(&filter) {
@@ -37,13 +37,15 @@ fn main() {
         }
         let s = summarise(&outcomes);
         println!(
-            "| {} | {} | {:.4} | {:.4} | {:.3} | {:.3} | {:.2} | {} of {} | {:.2}, {} of {} | {} of {} | {:.3} |",
+            "| {} | {} | {:.4} | {:.4} | {:.3} | {:.3} ({:.2} to {:.2}) | {:.2} | {} of {} | {:.2}, {} of {} | {} of {} | {:.3} |",
             case.label(),
             s.seeds,
             s.auto_rms_m * 1e6,
             s.oracle_rms_m * 1e6,
             s.oracle_ratio,
             s.mc_ratio,
+            s.mc_ratio_95.0,
+            s.mc_ratio_95.1,
             s.max_z,
             s.over_3,
             s.values,
