@@ -242,8 +242,9 @@ pub struct Summary {
     /// RMS over seeds of the actual map error divided by that of the predicted uncertainty.
     pub mc_ratio: f64,
     /// 95 % interval of `mc_ratio` from the seeds alone (percentile bootstrap over the seeds,
-    /// 2 000 resamples): how far a calibrated estimator's figure can stray with this many seeds,
-    /// since one campaign's map error is dominated by a few long-wavelength components.
+    /// 2 000 resamples): the scale on which the figure strays with this many seeds, since one
+    /// campaign's map error is dominated by a few long-wavelength components. Approximate: with
+    /// 20 seeds of such a skewed quantity it is too narrow (README).
     pub mc_ratio_95: (f64, f64),
     pub auto_rms_m: f64,
     pub oracle_rms_m: f64,

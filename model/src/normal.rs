@@ -29,10 +29,27 @@ pub(crate) fn runs_of(idx: &[usize], runs: &mut Vec<Run>) {
     }
 }
 
+/// `dst[r.col..][..r.len] += w * vals[r.at..][..r.len]`, with a fixed-width kernel for a run of
+/// 4 (a cubic B-spline's span) that the caller's SIMD dispatch vectorises.
+#[inline(always)]
+fn add_run(dst: &mut [f64], w: f64, r: &Run, vals: &[f64]) {
+    if r.len == 4 {
+        let d: &mut [f64; 4] = (&mut dst[r.col..r.col + 4]).try_into().unwrap();
+        let v: &[f64; 4] = (&vals[r.at..r.at + 4]).try_into().unwrap();
+        d[0] += w * v[0];
+        d[1] += w * v[1];
+        d[2] += w * v[2];
+        d[3] += w * v[3];
+    } else {
+        for (d, v) in dst[r.col..r.col + r.len].iter_mut().zip(&vals[r.at..r.at + r.len]) {
+            *d += w * v;
+        }
+    }
+}
+
 /// Adds `w_j a` to row `j` of the row-major `k x n` matrix `bt` for every `(j, w_j)` of
 /// `(cols, weights)`: the cross products `G^T W A` of an extension's sparse row (already
-/// weighted) against a model row `a` given by `runs` over `vals`. Runs of 4 (a cubic
-/// B-spline's span) use the fixed-width kernel of [`Upper::add`].
+/// weighted) against a model row `a` given by `runs` over `vals` ([`add_run`]).
 pub(crate) fn add_cross(bt: &mut [f64], n: usize, cols: &[usize], weights: &[f64], runs: &[Run], vals: &[f64]) {
     struct Cross<'a> {
         bt: &'a mut [f64],
@@ -50,18 +67,7 @@ pub(crate) fn add_cross(bt: &mut [f64], n: usize, cols: &[usize], weights: &[f64
             for (&j, &wj) in self.cols.iter().zip(self.weights) {
                 let dst = &mut self.bt[j * n..(j + 1) * n];
                 for r in self.runs {
-                    if r.len == 4 {
-                        let d: &mut [f64; 4] = (&mut dst[r.col..r.col + 4]).try_into().unwrap();
-                        let v: &[f64; 4] = (&self.vals[r.at..r.at + 4]).try_into().unwrap();
-                        d[0] += wj * v[0];
-                        d[1] += wj * v[1];
-                        d[2] += wj * v[2];
-                        d[3] += wj * v[3];
-                    } else {
-                        for (d, v) in dst[r.col..r.col + r.len].iter_mut().zip(&self.vals[r.at..r.at + r.len]) {
-                            *d += wj * v;
-                        }
-                    }
+                    add_run(dst, wj, r, self.vals);
                 }
             }
         }
@@ -132,18 +138,7 @@ impl Upper {
                     dst[r.col + j] += wa * vals[r.at + j];
                 }
                 for s in &runs[ra + 1..] {
-                    if s.len == 4 {
-                        let d: &mut [f64; 4] = (&mut dst[s.col..s.col + 4]).try_into().unwrap();
-                        let v: &[f64; 4] = (&vals[s.at..s.at + 4]).try_into().unwrap();
-                        d[0] += wa * v[0];
-                        d[1] += wa * v[1];
-                        d[2] += wa * v[2];
-                        d[3] += wa * v[3];
-                    } else {
-                        for (d, v) in dst[s.col..s.col + s.len].iter_mut().zip(&vals[s.at..s.at + s.len]) {
-                            *d += wa * v;
-                        }
-                    }
+                    add_run(dst, wa, s, vals);
                 }
             }
         }
