@@ -33,7 +33,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 use volcal::{Axis, ErrorModel};
-use volcal_sim::controller::{interpolate, AxisTable, AxisTableCompensation};
+use volcal_sim::controller::{AxisTable, AxisTableCompensation};
 
 /// Interpolation points of one table that every SINUMERIK volcal targets accepts (828D CEC: 200
 /// fixed; 808D EEC: 200). The 840D sl allows more through MD38000 / MD18342.
@@ -63,11 +63,6 @@ impl Table {
     fn step_m(&self) -> f64 {
         let n = self.nominal_m.len();
         (self.nominal_m[n - 1] - self.nominal_m[0]) / (n - 1) as f64
-    }
-
-    /// The value a SINUMERIK reads at `q` (linear between points, end values held).
-    pub fn value_at(&self, q: f64) -> f64 {
-        interpolate(&self.nominal_m, &self.value_m, q)
     }
 }
 
@@ -208,6 +203,8 @@ pub fn read_sinumerik(dir: &Path) -> Result<AxisTableCompensation> {
 fn parse_tables(text: &str, eec: bool) -> Result<Vec<Table>> {
     // Per table key (EEC: axis name; CEC: table number): points and scalar settings.
     let mut points: BTreeMap<String, BTreeMap<usize, f64>> = BTreeMap::new();
+    // The line where each table's first point is: what an error about the table as a whole names.
+    let mut first_line: BTreeMap<String, usize> = BTreeMap::new();
     let mut settings: BTreeMap<(String, String), (usize, String)> = BTreeMap::new();
     for (i, l) in text.lines().enumerate() {
         let n = i + 1;
@@ -242,6 +239,7 @@ fn parse_tables(text: &str, eec: bool) -> Result<Vec<Table>> {
                     .ok()
                     .filter(|v: &f64| v.is_finite())
                     .with_context(|| format!("line {n}: value {rhs:?} is not a number"))?;
+                first_line.entry(key.clone()).or_insert(n);
                 points.entry(key).or_default().insert(k, v * 1e-3);
             }
             None => {
@@ -269,7 +267,7 @@ fn parse_tables(text: &str, eec: bool) -> Result<Vec<Table>> {
                 .with_context(|| format!("line {n}: axis {v:?} is none of AX1, AX2, AX3"))
         };
         let (input, output) = if eec {
-            let a = axis(&key, 0).with_context(|| format!("EEC table of {key}"))?;
+            let a = axis(&key, first_line[&key])?;
             (a, a)
         } else {
             let (ni, vi) = get("_INPUT_AXIS")?;
