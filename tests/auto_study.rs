@@ -121,6 +121,8 @@ pub struct Outcome {
     pub points: usize,
     pub knots: [AxisKnots; 3],
     pub edf: f64,
+    /// The noise variance factor REML took (1: the stated noise).
+    pub noise_scale: f64,
     pub auto_s: f64,
 }
 
@@ -214,6 +216,36 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
             n += 1;
         }
     }
+    if std::env::var_os("AUTO_DEBUG").is_some() {
+        let st = &sol.stats;
+        eprintln!("  chi2 {:.1} dof {} vf {:.3}", st.chi2, st.dof, st.variance_factor);
+        let lam: std::collections::HashMap<String, (f64, f64)> = sol
+            .smoothing
+            .as_ref()
+            .map(|r| r.functions.iter().map(|f| (f.function.name(), (f.lambda[0], f.edf))).collect())
+            .unwrap_or_default();
+        for f in volcal::ErrorFunction::all() {
+            let [lo, hi] = travel.range(f.axis);
+            let (mut e2, mut t2, mut m) = (0.0, 0.0, 0.0f64);
+            for i in 0..=200 {
+                let q = lo + (hi - lo) * i as f64 / 200.0;
+                let d = sol.model.function_value(f, q) - aligned.function_value(f, q);
+                e2 += d * d;
+                t2 += aligned.function_value(f, q).powi(2);
+                m = m.max(d.abs());
+            }
+            let (l, edf) = lam.get(&f.name()).copied().unwrap_or((0.0, 0.0));
+            eprintln!(
+                "   {:>4}: err rms {:.3e} max {:.3e} truth rms {:.3e} lambda {:.2e} edf {:.1}",
+                f.name(),
+                (e2 / 201.0).sqrt(),
+                m,
+                (t2 / 201.0).sqrt(),
+                l,
+                edf
+            );
+        }
+    }
     let n = n.max(1) as f64;
     Outcome {
         auto_rms_m: (a2 / n).sqrt(),
@@ -229,6 +261,7 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
         points,
         knots,
         edf: sol.smoothing.as_ref().map_or(0.0, |s| s.edf_total),
+        noise_scale: sol.smoothing.as_ref().map_or(1.0, |s| s.noise_scale),
         auto_s,
     }
 }

@@ -79,7 +79,16 @@ pub struct RepresentationChoice {
     pub reml_converged: bool,
     /// Effective number of parameters of the whole model.
     pub edf_total: f64,
+    /// The readings' noise variance as REML took it, relative to the stated noise: 1, or more
+    /// where the smoothed fit leaves a misfit the model cannot absorb (then read as noise, not
+    /// as detail). Files written before it was recorded read as 1.
+    #[serde(default = "unit")]
+    pub noise_scale: f64,
     pub statements: Vec<String>,
+}
+
+fn unit() -> f64 {
+    1.0
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -135,11 +144,13 @@ impl RepresentationChoice {
         let mut statements: Vec<String> = knots.iter().map(|k| k.describe()).collect();
         let mut entries = Vec::new();
         let (mut method, mut iterations, mut converged, mut edf_total) = (String::from("none"), 0, true, 0.0);
+        let mut noise_scale = 1.0;
         if let Some(r) = smoothing {
             method = r.method.clone();
             iterations = r.iterations;
             converged = r.converged;
             edf_total = r.edf_total;
+            noise_scale = r.noise_scale;
             let smoothest: Vec<String> =
                 r.functions.iter().filter(|f| f.smoothest).map(|f| f.function.name()).collect();
             let curved: Vec<String> = r
@@ -157,6 +168,16 @@ impl RepresentationChoice {
             ));
             if !smoothest.is_empty() {
                 statements.push(format!("The readings show no detail beyond a parabola in {}.", smoothest.join(", ")));
+            }
+            if r.noise_scale > 1.0 {
+                statements.push(format!(
+                    "The readings scatter about the smoothed fit {:.2} times as much as the stated noise (variance \
+                     factor {:.2}): the smoothing took that as noise, not as detail, and the uncertainty carries \
+                     it. A feature shorter than the readings' spacing, or physics the model leaves out, does \
+                     this; `volcal diagnose` locates it.",
+                    r.noise_scale.sqrt(),
+                    r.noise_scale
+                ));
             }
             for f in r.functions.iter().filter(|f| !f.shared_with.is_empty()) {
                 statements.push(format!(
@@ -210,6 +231,7 @@ impl RepresentationChoice {
             reml_iterations: iterations,
             reml_converged: converged,
             edf_total,
+            noise_scale,
             statements,
         }
     }

@@ -968,9 +968,10 @@ pub fn fit<'a>(
     let mut inverse = factor.llt.inverse();
     // Smoothing parameters estimated from the readings carry uncertainty of their own.
     if reml_wanted {
-        if let Some(pen) = prob.penalty.as_ref() {
+        if let (Some(pen), Some(noise)) = (prob.penalty.as_ref(), reml_log.scale) {
             let rp = ReducedPenalty::new(pen, n, &scale, &state.d[..layout.n_params], |x| z.zt(x));
-            if let Some(dc) = smoothing::lambda_covariance(&rp, &pen.lambda, factor.llt.L(), &reml_log.at_upper) {
+            if let Some(dc) = smoothing::lambda_covariance(&rp, &pen.lambda, factor.llt.L(), &reml_log.at_upper, noise)
+            {
                 inverse += dc;
             }
         }
@@ -988,7 +989,12 @@ pub fn fit<'a>(
             &scale,
             |x| z.zt(x),
             z.dim(),
-            reml_wanted.then_some((reml_log.iterations, reml_log.converged, reml_log.at_upper.as_slice())),
+            reml_wanted.then_some((
+                reml_log.iterations,
+                reml_log.converged,
+                reml_log.at_upper.as_slice(),
+                reml_log.scale.map_or(1.0, |s| s.phi),
+            )),
         )
     });
     let n_free = smoothing_report.as_ref().map_or(z.dim() as f64, |r| r.edf_total);
@@ -1084,6 +1090,8 @@ struct RemlLog {
     at_upper: Vec<bool>,
     /// Whether functions determined only together were given one parameter (first round).
     merged: bool,
+    /// The noise scale of the last round.
+    scale: Option<smoothing::Scale>,
 }
 
 /// One round of REML ([`smoothing::reml`]) on the quadratic model of the fit at `state` (data
@@ -1108,7 +1116,8 @@ fn reml_round(
     let mut minus_su = vec![0.0; n];
     pen.apply(&state.d[..n_u], &mut minus_su[..n_u]);
     let g_data = z.zt(&Mat::from_fn(n, 1, |i, _| (normal.b[i] - minus_su[i]) / scale[i]));
-    let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: normal.chi2 };
+    let n_obs = (0..prob.obs.groups.len()).filter(|&g| prob.active[g]).map(|g| prob.obs.groups[g].len()).sum();
+    let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: normal.chi2, n_obs };
     let mut rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
     if !log.merged {
         log.merged = true;
@@ -1134,6 +1143,7 @@ fn reml_round(
     log.iterations += res.iterations;
     log.converged = res.converged;
     log.at_upper = res.at_upper;
+    log.scale = Some(res.scale);
 }
 
 /// What stays undetermined once the roughness penalty of `prob` is in the model: the null space

@@ -126,6 +126,10 @@ pub struct SmoothingReport {
     /// Effective number of model parameters (trace of the influence matrix), for the degrees of
     /// freedom of the residuals.
     pub edf_total: f64,
+    /// The variance factor REML took the readings' noise to have, relative to the stated noise:
+    /// 1, or more when the penalised fit leaves a misfit the model cannot absorb (see
+    /// `Scale`).
+    pub noise_scale: f64,
 }
 
 /// One piece of a penalised function: where its coefficients sit, the roughness matrix of the
@@ -392,6 +396,8 @@ pub(crate) struct Quadratic<'a> {
     /// `Z^T D^-1 b` of the data alone (`b = J' W r`).
     pub g_data: &'a Mat<f64>,
     pub chi2: f64,
+    /// Readings in the chi-square.
+    pub n_obs: usize,
 }
 
 /// The penalties in reduced coordinates, and what REML needs of them.
@@ -507,6 +513,8 @@ pub(crate) struct RemlResult {
     pub converged: bool,
     /// Per group: the readings show no detail (held at [`DETAIL_FLOOR`]).
     pub at_upper: Vec<bool>,
+    /// The noise scale at `lambda`.
+    pub scale: Scale,
 }
 
 /// Fewest effective parameters of detail (beyond the parabola) a smoothed function keeps. Where
@@ -531,6 +539,43 @@ struct Eval {
     y: Mat<f64>,
     /// `e_g = beta' S_g beta`.
     e: Vec<f64>,
+    /// The variance factor at this point ([`Scale`]).
+    scale: Scale,
+}
+
+/// The scale of the readings' noise in the criterion: the stated noise, or larger where the
+/// readings say so. With the stated noise taken as exact, a misfit the model cannot absorb (a
+/// feature shorter than the knots or than the readings' spacing, unmodelled physics) is read
+/// by REML as detail: every smoothing parameter collapses and the functions oscillate between
+/// the readings by orders of magnitude more than the truth (seen: 1.1 mm of squareness-like
+/// wobble on a 4 um truth, from sparse beams over a bump, chi2/dof 3.8). Profiling the scale
+/// out when the penalised fit's variance factor `phi = D_p / (n - M_p)` exceeds 1 (REML with an
+/// unknown scale, as in mgcv, bounded below by the stated noise) lets the misfit inflate the
+/// noise instead, which the reported covariance then carries ([`crate::estimator`]'s Birge
+/// factor).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Scale {
+    /// `max(1, D_p / dof)`.
+    pub phi: f64,
+    /// `n - M_p`: readings less the unpenalised dimension.
+    pub dof: f64,
+}
+
+impl Scale {
+    fn of(d_p: f64, dof: f64) -> Scale {
+        Scale { phi: (d_p / dof).max(1.0), dof }
+    }
+
+    /// Whether the scale is estimated here (above the stated noise).
+    fn profiled(&self) -> bool {
+        self.phi > 1.0
+    }
+}
+
+/// `n - M_p` of the criterion: the readings less the dimension the penalties leave free.
+fn residual_dof(q: &Quadratic<'_>, rp: &ReducedPenalty) -> f64 {
+    let free = q.m_data.nrows().saturating_sub(rp.rank.iter().sum());
+    (q.n_obs.saturating_sub(free)).max(1) as f64
 }
 
 fn evaluate(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda: &[f64]) -> Option<Eval> {
@@ -567,7 +612,10 @@ fn evaluate(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda: &[f64]) -> Option<Ev
     }
     let l = llt.L();
     let logdet: f64 = (0..l.nrows()).map(|i| 2.0 * l[(i, i)].ln()).sum();
-    Some(Eval { v: 0.5 * (chi2 + pen + logdet - logdet_prior), llt, y, e })
+    let d_p = chi2 + pen;
+    let scale = Scale::of(d_p, residual_dof(q, rp));
+    let v = 0.5 * (d_p / scale.phi + scale.dof * scale.phi.ln() + logdet - logdet_prior);
+    Some(Eval { v, llt, y, e, scale })
 }
 
 /// Estimates the smoothing parameters by REML from `lambda0` (one per group of `rp`), Newton's
@@ -582,18 +630,15 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut cur = evaluate(q, rp, &lam(&rho))?;
     let mut iterations = 0;
     let mut converged = false;
-    let mut grad = vec![0.0; ng];
+    let mut grad;
     // The traces `t_g` at `cur`, while they are known.
     let mut t_cur: Option<Vec<f64>> = None;
     for it in 0..max_iter {
         iterations = it + 1;
         let lambda = lam(&rho);
         let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
-        let t = &d.t;
         t_cur = Some(d.t.clone());
-        for g in 0..ng {
-            grad[g] = if active[g] { 0.5 * (lambda[g] * cur.e[g] + lambda[g] * t[g] - rp.rank[g] as f64) } else { 0.0 };
-        }
+        grad = d.gradient(rp, &lambda, &cur.e, cur.scale);
         // Free components: not pinned at a bound by a gradient pushing outwards.
         let free: Vec<usize> = (0..ng)
             .filter(|&g| {
@@ -607,7 +652,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         }
         let k = free.len();
         // Newton direction on a positive definite modification of the Hessian.
-        let hs = d.hessian(&lambda, &cur.e, &free);
+        let hs = d.hessian(&lambda, &cur.e, cur.scale, &free);
         let eig = hs.self_adjoint_eigen(Side::Lower).ok()?;
         let lam_h: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
         let lmax = lam_h.iter().map(|l| l.abs()).fold(0.0, f64::max).max(1e-12);
@@ -671,7 +716,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         }
         cur = evaluate(q, rp, &lambda)?;
     }
-    Some(RemlResult { lambda, y: cur.y, iterations, converged, at_upper })
+    Some(RemlResult { lambda, y: cur.y, iterations, converged, at_upper, scale: cur.scale })
 }
 
 /// `t_g = tr(M^-1 P_g) = |L^-1 B_g^T|_F^2` per group, for `M = L L^T`: what the detail floor
@@ -743,11 +788,27 @@ impl Derivatives {
         Derivatives { cols, gram, t, w }
     }
 
+    /// Gradient of `V` with respect to `log lambda` (Wood 2011):
+    /// `(lambda_g e_g / phi + lambda_g t_g - r_g) / 2`, zero for a group of rank zero.
+    fn gradient(&self, rp: &ReducedPenalty, lambda: &[f64], e: &[f64], scale: Scale) -> Vec<f64> {
+        (0..rp.n_groups())
+            .map(|g| {
+                if rp.rank[g] == 0 {
+                    return 0.0;
+                }
+                0.5 * (lambda[g] * e[g] / scale.phi + lambda[g] * self.t[g] - rp.rank[g] as f64)
+            })
+            .collect()
+    }
+
     /// Hessian of `V` with respect to `log lambda` over the groups `free` (Wood 2011):
-    /// `H_gh = delta_gh lambda_g (e_g + t_g) / 2 - lambda_g lambda_h (w_g . w_h)
+    /// `H_gh = delta_gh lambda_g (e_g / phi + t_g) / 2 - lambda_g lambda_h (w_g . w_h) / phi
     ///  - lambda_g lambda_h tr(M^-1 P_g M^-1 P_h) / 2`, the trace being the squared norm of
-    /// the `(g, h)` block of `G^T G`.
-    fn hessian(&self, lambda: &[f64], e: &[f64], free: &[usize]) -> Mat<f64> {
+    /// the `(g, h)` block of `G^T G`; with the scale profiled ([`Scale`]), less
+    /// `lambda_g e_g lambda_h e_h / (2 dof phi^2)`.
+    fn hessian(&self, lambda: &[f64], e: &[f64], scale: Scale, free: &[usize]) -> Mat<f64> {
+        let phi = scale.phi;
+        let profiled = scale.profiled();
         let k = free.len();
         let ww = self.w.transpose() * &self.w;
         let mut h = Mat::<f64>::zeros(k, k);
@@ -759,9 +820,12 @@ impl Derivatives {
                         tgh += self.gram[(i, j)] * self.gram[(i, j)];
                     }
                 }
-                let mut v = -lambda[g] * lambda[hh] * ww[(g, hh)] - 0.5 * lambda[g] * lambda[hh] * tgh;
+                let mut v = -lambda[g] * lambda[hh] * ww[(g, hh)] / phi - 0.5 * lambda[g] * lambda[hh] * tgh;
+                if profiled {
+                    v -= lambda[g] * e[g] * lambda[hh] * e[hh] / (2.0 * scale.dof * phi * phi);
+                }
                 if a == b {
-                    v += 0.5 * lambda[g] * (e[g] + self.t[g]);
+                    v += 0.5 * lambda[g] * (e[g] / phi + self.t[g]);
                 }
                 h[(a, b)] = v;
                 h[(b, a)] = v;
@@ -784,6 +848,7 @@ pub(crate) fn lambda_covariance(
     lambda: &[f64],
     l: faer::MatRef<'_, f64>,
     at_upper: &[bool],
+    scale: Scale,
 ) -> Option<Mat<f64>> {
     let ng = rp.n_groups();
     let nr = l.nrows();
@@ -794,7 +859,7 @@ pub(crate) fn lambda_covariance(
     if free.is_empty() {
         return None;
     }
-    let h = d.hessian(lambda, &e, &free);
+    let h = d.hessian(lambda, &e, scale, &free);
     let eig = h.self_adjoint_eigen(Side::Lower).ok()?;
     let k = free.len();
     let lam_h: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
@@ -837,7 +902,7 @@ pub(crate) fn initial_lambda(q: &Quadratic<'_>, rp: &ReducedPenalty) -> Vec<f64>
 /// penalised matrix): per function the share of its curvature that the prior rather than the
 /// data determines, `lambda tr(M^-1 P_f)`, hence its effective number of parameters; the total
 /// over the `n_free` free directions. `reml` carries (iterations, converged, at upper bound per
-/// group) when the parameters were estimated.
+/// group, noise scale) when the parameters were estimated.
 pub(crate) fn report(
     pen: &Penalty,
     l: faer::MatRef<'_, f64>,
@@ -845,7 +910,7 @@ pub(crate) fn report(
     scale: &[f64],
     zt: impl Fn(&Mat<f64>) -> Mat<f64>,
     n_free: usize,
-    reml: Option<(usize, bool, &[bool])>,
+    reml: Option<(usize, bool, &[bool], f64)>,
 ) -> SmoothingReport {
     let mut functions: Vec<FunctionSmoothing> = Vec::new();
     let mut prior_total = 0.0;
@@ -854,7 +919,7 @@ pub(crate) fn report(
         faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, x.as_mut(), faer::Par::Seq);
         let share = pen.lambda[b.group] * x.squared_norm_l2();
         prior_total += share;
-        let at_upper = reml.is_some_and(|(_, _, up)| up.get(b.group).copied().unwrap_or(false));
+        let at_upper = reml.is_some_and(|(_, _, up, _)| up.get(b.group).copied().unwrap_or(false));
         match functions.iter_mut().find(|f| f.function == b.function) {
             Some(f) => {
                 f.lambda.push(pen.lambda[b.group]);
@@ -883,9 +948,9 @@ pub(crate) fn report(
     for f in &mut functions {
         f.edf = f.edf.max(0.0);
     }
-    let (method, iterations, converged) = match reml {
-        Some((it, c, _)) => ("reml", it, c),
-        None => ("fixed", 0, true),
+    let (method, iterations, converged, noise_scale) = match reml {
+        Some((it, c, _, phi)) => ("reml", it, c, phi),
+        None => ("fixed", 0, true, 1.0),
     };
     SmoothingReport {
         method: method.into(),
@@ -893,6 +958,7 @@ pub(crate) fn report(
         iterations,
         converged,
         edf_total: (n_free as f64 - prior_total).max(0.0),
+        noise_scale,
     }
 }
 
@@ -926,6 +992,75 @@ mod tests {
                         .map(|b| (0..b.s.nrows()).map(|i| b.s[(i, i)]).fold(0.0, f64::max))
                         .fold(0.0, f64::max);
                     assert!(cost.abs() < 1e-9 * scale, "{topo} {travel:?}: gauge freedom {c} costs {cost:e}");
+                }
+            }
+        }
+    }
+
+    /// A reduced problem of `n` coordinates, three penalties of rank 5 and `n_obs` readings
+    /// whose chi-square at the start is `chi2`.
+    fn random_problem(
+        n: usize,
+        n_obs: usize,
+        chi2: f64,
+        seed: u64,
+    ) -> (Mat<f64>, Mat<f64>, f64, usize, ReducedPenalty) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let a = Mat::from_fn(n + 10, n, |_, _| rng.random_range(-1.0..1.0));
+        let m_data = a.transpose() * &a;
+        let g_data = Mat::from_fn(n, 1, |_, _| rng.random_range(-3.0..3.0));
+        let u0 = Mat::from_fn(n, 1, |_, _| rng.random_range(-3.0..3.0));
+        let (mut bt, mut p, mut h, mut e0, mut rank) = (vec![], vec![], vec![], vec![], vec![]);
+        for _ in 0..3 {
+            let b = Mat::from_fn(n, 5, |_, _| rng.random_range(-1.0..1.0));
+            let pg = &b * b.transpose();
+            h.push(&pg * &u0);
+            e0.push((u0.transpose() * &pg * &u0)[(0, 0)]);
+            rank.push(5);
+            p.push(pg);
+            bt.push(b);
+        }
+        (m_data, g_data, chi2, n_obs, ReducedPenalty { bt, p, h, e0, rank })
+    }
+
+    /// The gradient and Hessian the Newton iteration uses are those of the criterion it
+    /// minimises, with the stated noise and with the scale profiled out (a misfit).
+    #[test]
+    fn reml_derivatives_match_finite_differences() {
+        for (chi2, n_obs, profiled) in [(40.0, 400, false), (400.0, 30, true)] {
+            let (m_data, g_data, chi2, n_obs, rp) = random_problem(12, n_obs, chi2, 7);
+            let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2, n_obs };
+            let rho = [0.3, -1.2, 0.8];
+            let lam = |r: &[f64]| -> Vec<f64> { r.iter().map(|x| x.exp()).collect() };
+            let at = |r: &[f64]| {
+                let e = evaluate(&q, &rp, &lam(r)).unwrap();
+                let d = Derivatives::at(&rp, e.llt.L(), &e.y);
+                (e.v, d.gradient(&rp, &lam(r), &e.e, e.scale), d.hessian(&lam(r), &e.e, e.scale, &[0, 1, 2]), e.scale)
+            };
+            let (_, grad, hess, scale) = at(&rho);
+            assert_eq!(scale.profiled(), profiled, "phi {}", scale.phi);
+            let eps = 1e-5;
+            for k in 0..3 {
+                let mut up = rho;
+                up[k] += eps;
+                let mut dn = rho;
+                dn[k] -= eps;
+                let (vu, gu, _, _) = at(&up);
+                let (vd, gd, _, _) = at(&dn);
+                let fd = (vu - vd) / (2.0 * eps);
+                assert!(
+                    (fd - grad[k]).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "chi2 {chi2}: gradient {k}: {fd} vs {}",
+                    grad[k]
+                );
+                for j in 0..3 {
+                    let fd = (gu[j] - gd[j]) / (2.0 * eps);
+                    assert!(
+                        (fd - hess[(j, k)]).abs() < 1e-5 * (1.0 + fd.abs()),
+                        "chi2 {chi2}: hessian ({j}, {k}): {fd} vs {}",
+                        hess[(j, k)]
+                    );
                 }
             }
         }
