@@ -25,6 +25,8 @@
 //!
 //! with `rho = log lambda` and `r_g` the rank of penalty `g` on that subspace, is minimised by
 //! Newton's method with exact gradient and Hessian (Wood 2011, appendix), in a few iterations.
+//! Where the penalised fit's residuals exceed the stated noise, the noise scale `phi` is
+//! profiled out of `V` (`chi2 + pen` divided by `phi`, plus `(n - M_p) log phi`: [`Scale`]).
 //! Functions the data determine only together (e.g. a straightness and a rotation through one
 //! probe offset) share one smoothing parameter, since the data cannot tell their curvatures apart.
 
