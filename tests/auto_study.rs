@@ -126,14 +126,12 @@ pub struct Outcome {
     pub auto_s: f64,
 }
 
-/// Simulates the case for `seed`, solves it both ways and measures both maps.
-pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
+/// The case's campaign for `seed` (its plans on one machine carrying the truth), and the truth.
+pub fn campaign(case: &Case, seed: u64) -> (Campaign, FamilyTruth) {
     let machine = case.machine();
-    let topology: Topology = machine.layout.topology.clone();
-    let travel = machine.layout.travel;
-    let truth: FamilyTruth = draw(case.family, &topology, travel, seed);
+    let truth: FamilyTruth = draw(case.family, &machine.layout.topology, machine.layout.travel, seed);
     let mut campaign: Option<Campaign> = None;
-    for (k, plan) in case.plans(&travel).into_iter().enumerate() {
+    for (k, plan) in case.plans(&machine.layout.travel).into_iter().enumerate() {
         let mut cfg = sim_config(&machine, plan, seed);
         cfg.machine.truth = truth.model.clone();
         let out = simulate(&cfg, &[], seed * 7 + k as u64).expect("simulate");
@@ -142,7 +140,15 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
             Some(c) => c.readings.extend(out.campaign.readings),
         }
     }
-    let campaign = campaign.unwrap();
+    (campaign.unwrap(), truth)
+}
+
+/// Simulates the case for `seed`, solves it both ways and measures both maps.
+pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
+    let machine = case.machine();
+    let topology: Topology = machine.layout.topology.clone();
+    let travel = machine.layout.travel;
+    let (campaign, truth) = self::campaign(case, seed);
     let prep = prepare(&campaign, &travel, &machine.expansion).expect("prepare");
     let obs = &prep.obs;
     let g: Gauge = machine.gauge;

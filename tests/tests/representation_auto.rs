@@ -107,6 +107,21 @@ fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
     );
     assert!(o.noise_scale > 2.0, "the misfit is not reported: noise scale {}", o.noise_scale);
     assert!((0.5..=1.5).contains(&ratio), "actual / predicted map RMS {ratio}");
+
+    // What the user sees: `volcal solve`'s statement, and the factor in the model file.
+    let (campaign, _) = volcal_tests::auto_study::campaign(&case, 19);
+    let solved = solve_campaign(&campaign, case.machine(), "sparse beams", Provenance::default()).unwrap();
+    let choice = solved.file.representation_choice.as_ref().unwrap();
+    let said = choice.statements.iter().find(|s| s.contains("times as much as the stated noise"));
+    eprintln!("  {}", said.map_or("(no statement)", |s| s.as_str()));
+    assert!(said.is_some(), "no statement of the misfit in {:#?}", choice.statements);
+    let path = std::env::temp_dir().join(format!("volcal-misfit-{}.json", std::process::id()));
+    solved.file.write(&path).unwrap();
+    let back = volcal_formats::model_file::load(&path);
+    std::fs::remove_file(&path).ok();
+    let back = back.unwrap();
+    let kept = back.file.representation_choice.as_ref().unwrap().noise_scale;
+    assert_eq!(kept, choice.noise_scale, "the model file keeps the factor");
 }
 
 /// The tracer case: 4 stations, the 12 edges of the working cuboid, 11 points per edge
