@@ -549,8 +549,8 @@ struct Eval {
 /// readings say so. With the stated noise taken as exact, a misfit the model cannot absorb (a
 /// feature shorter than the knots or than the readings' spacing, unmodelled physics) is read
 /// by REML as detail: every smoothing parameter collapses and the functions oscillate between
-/// the readings by orders of magnitude more than the truth (seen: 1.1 mm of squareness-like
-/// wobble on a 4 um truth, from sparse beams over a bump, chi2/dof 3.8). Profiling the scale
+/// the readings by orders of magnitude more than the truth (seen: a yaw wrong by 1.1 mrad RMS
+/// where the truth is 4 urad, from sparse beams over a bump, chi2/dof 3.8). Profiling the scale
 /// out when the penalised fit's variance factor `phi = D_p / (n - M_p)` exceeds 1 (REML with an
 /// unknown scale, as in mgcv, bounded below by the stated noise) lets the misfit inflate the
 /// noise instead, which the reported covariance then carries ([`crate::estimator`]'s Birge
