@@ -145,11 +145,16 @@ pub fn campaign(case: &Case, seed: u64) -> (Campaign, FamilyTruth) {
 
 /// Simulates the case for `seed`, solves it both ways and measures both maps.
 pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
+    let (campaign, truth) = self::campaign(case, seed);
+    run_on(case, &campaign, &truth, auto)
+}
+
+/// Solves the case's `campaign` both ways and measures both maps against `truth`.
+pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto) -> Outcome {
     let machine = case.machine();
     let topology: Topology = machine.layout.topology.clone();
     let travel = machine.layout.travel;
-    let (campaign, truth) = self::campaign(case, seed);
-    let prep = prepare(&campaign, &travel, &machine.expansion).expect("prepare");
+    let prep = prepare(campaign, &travel, &machine.expansion).expect("prepare");
     let obs = &prep.obs;
     let g: Gauge = machine.gauge;
     let plain = SolveOptions { gauge: g, noise: machine.noise, ..SolveOptions::default() };
@@ -167,7 +172,7 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
     }
 
     let oracle_layout = Oracle::layout(topology.clone(), travel);
-    let oracle = Oracle::new(&truth, g, &oracle_layout);
+    let oracle = Oracle::new(truth, g, &oracle_layout);
     let refs: [&dyn volcal::estimator::Effect; 1] = [&oracle];
     let so = solve(&oracle_layout, obs, &plain, &refs).expect("oracle solve");
     let oc: Vec<f64> = so.effects[0].1.iter().map(|(_, v, _)| *v).collect();
@@ -235,9 +240,10 @@ pub fn run(case: &Case, seed: u64, auto: &Auto) -> Outcome {
             let (mut e2, mut t2, mut m) = (0.0, 0.0, 0.0f64);
             for i in 0..=200 {
                 let q = lo + (hi - lo) * i as f64 / 200.0;
-                let d = sol.model.function_value(f, q) - aligned.function_value(f, q);
+                let t = aligned.function_value(f, q);
+                let d = sol.model.function_value(f, q) - t;
                 e2 += d * d;
-                t2 += aligned.function_value(f, q).powi(2);
+                t2 += t * t;
                 m = m.max(d.abs());
             }
             let (l, edf) = lam.get(&f.name()).copied().unwrap_or((0.0, 0.0));

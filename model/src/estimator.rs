@@ -318,6 +318,13 @@ struct Problem<'a> {
     penalty: Option<Penalty>,
 }
 
+impl Problem<'_> {
+    /// Readings of the groups taking part in the fit.
+    fn active_readings(&self) -> usize {
+        (0..self.obs.groups.len()).filter(|&g| self.active[g]).map(|g| self.obs.groups[g].len()).sum()
+    }
+}
+
 /// Per reading and axis: first coefficient and basis values.
 struct Structure {
     k: [usize; 3],
@@ -978,7 +985,7 @@ pub fn fit<'a>(
     }
     let cov_scaled = z.embed(&inverse);
     let active_groups: Vec<usize> = (0..obs.groups.len()).filter(|&g| prob.active[g]).collect();
-    let n_obs: usize = active_groups.iter().map(|&g| obs.groups[g].len()).sum();
+    let n_obs = prob.active_readings();
     // With smoothing, the curvature the prior determines is not fitted to the readings: the
     // effective number of parameters is the free dimension minus the prior's share.
     let smoothing_report = prob.penalty.as_ref().map(|pen| {
@@ -1110,13 +1117,13 @@ fn reml_round(
 ) {
     let n = prob.dims.n();
     let n_u = prob.dims.n_u;
+    let n_obs = prob.active_readings();
     let Some(pen) = prob.penalty.as_mut() else { return };
     let m_data = z.project(&Mat::from_fn(n, n, |i, j| n_data[(i, j)] / (scale[i] * scale[j])));
     // The data's gradient: `normal.b` is `J' W r - S u`.
     let mut minus_su = vec![0.0; n];
     pen.apply(&state.d[..n_u], &mut minus_su[..n_u]);
     let g_data = z.zt(&Mat::from_fn(n, 1, |i, _| (normal.b[i] - minus_su[i]) / scale[i]));
-    let n_obs = (0..prob.obs.groups.len()).filter(|&g| prob.active[g]).map(|g| prob.obs.groups[g].len()).sum();
     let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: normal.chi2, n_obs };
     let mut rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
     if !log.merged {

@@ -14,7 +14,7 @@ use volcal_formats::model_file::Provenance;
 use volcal_formats::plan::sim_config;
 use volcal_formats::solving::solve_campaign;
 use volcal_sim::{simulate, Plan};
-use volcal_tests::auto_study::{run, suite, summarise};
+use volcal_tests::auto_study::{run, run_on, suite, summarise};
 use volcal_tests::truth_families::{draw, Family};
 
 /// Seeds of this test: never used to choose a threshold or a default.
@@ -95,7 +95,8 @@ fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
                 && c.density == volcal_tests::auto_study::Density::Sparse
         })
         .unwrap();
-    let o = run(&case, 19, &Auto::default());
+    let (campaign, truth) = volcal_tests::auto_study::campaign(&case, 19);
+    let o = run_on(&case, &campaign, &truth, &Auto::default());
     let ratio = o.auto_rms_m / o.predicted_rms_m;
     eprintln!(
         "{}, seed 19: noise scale {:.2}, map error {:.2} um RMS against {:.2} um predicted ({ratio:.2}), {:.2} um for the oracle",
@@ -109,7 +110,6 @@ fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
     assert!((0.5..=1.5).contains(&ratio), "actual / predicted map RMS {ratio}");
 
     // What the user sees: `volcal solve`'s statement, and the factor in the model file.
-    let (campaign, _) = volcal_tests::auto_study::campaign(&case, 19);
     let solved = solve_campaign(&campaign, case.machine(), "sparse beams", Provenance::default()).unwrap();
     let choice = solved.file.representation_choice.as_ref().unwrap();
     let said = choice.statements.iter().find(|s| s.contains("times as much as the stated noise"));
