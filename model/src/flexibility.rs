@@ -231,7 +231,8 @@ pub struct AutoSolve {
     pub knots: [AxisKnots; 3],
 }
 
-/// Most rounds of knot refinement.
+/// Most rounds of knot refinement (each one fit): two doublings from the start and a retest of
+/// axes whose test another axis's unresolved detail had masked.
 const REFINE_ROUNDS: usize = 3;
 /// Significance below which finer knots are taken: their score must be beyond what noise gives
 /// in a million campaigns, since a refinement that only fits noise costs variance everywhere.
@@ -241,8 +242,11 @@ pub const REFINE_P: f64 = 1e-6;
 /// REML; then, per axis whose knots are not yet at their bound, a score test of the doubled
 /// knots against that fit (the finer B-spline's extra detail as an extension of the model,
 /// [`Fit::score`]); axes where the readings ask for finer detail (p < [`REFINE_P`]) are refined
-/// and the campaign solved again, REML starting from the smoothing found. `opts` carries the
-/// gauge, noise and the rest; its smoothing is replaced.
+/// and the campaign solved again, REML starting from the smoothing found. An axis whose test
+/// failed is tested again after another axis was refined: the detail the coarse knots of one
+/// axis could not fit inflates the residual against which every axis is tested, and part of it
+/// aliases onto the others. `opts` carries the gauge, noise and the rest; its smoothing is
+/// replaced.
 pub fn solve_auto(
     topology: &Topology,
     travel: Travel,
@@ -285,7 +289,8 @@ pub fn solve_auto(
                     .map(|m| ErrorFunction::from_index(a.index() * 6 + m))
                     .filter(|f| overrides[f.index()].is_none())
                     .collect();
-                if k.intervals >= most || functions.is_empty() || k.tests.last().is_some_and(|t| !t.refined) {
+                // An axis whose finer knots the geometry did not determine is not tried again.
+                if k.intervals >= most || functions.is_empty() || k.tests.last().is_some_and(|t| !t.determined) {
                     continue;
                 }
                 let to = (2 * k.intervals).min(most);
@@ -371,18 +376,24 @@ fn partly_determined(sol: &Solution, layout: &ModelLayout) -> usize {
 
 /// p-value of a refinement whose score is `delta_chi2` on `dof` degrees of freedom: the F-test of
 /// the reduction per degree of freedom against the residual variance per degree of freedom of
-/// the fit (so that an instrument noise stated too large or too small neither hides nor invents
-/// detail).
+/// the refined fit (so that an instrument noise stated too large or too small neither hides nor
+/// invents detail). The refined fit's residual, not the coarse one's: the coarse residual holds
+/// the very detail under test, and a bump the coarse knots cannot follow would inflate the
+/// yardstick it is measured with (the extra-sum-of-squares F-test).
 fn refinement_p(delta_chi2: f64, dof: usize, stats: &crate::estimator::ResidualStats) -> f64 {
     use statrs::distribution::{ContinuousCDF, FisherSnedecor};
-    if dof == 0 || stats.dof == 0 || stats.chi2 <= 0.0 {
+    let rest = stats.chi2 - delta_chi2;
+    if dof == 0 || stats.dof <= dof || delta_chi2 <= 0.0 {
         return 1.0;
     }
-    let f = (delta_chi2 / dof as f64) / (stats.chi2 / stats.dof as f64);
+    if rest <= 0.0 {
+        return 0.0;
+    }
+    let f = (delta_chi2 / dof as f64) / (rest / (stats.dof - dof) as f64);
     if !f.is_finite() {
         return 0.0;
     }
-    FisherSnedecor::new(dof as f64, stats.dof as f64).map(|d| d.sf(f)).unwrap_or(1.0)
+    FisherSnedecor::new(dof as f64, (stats.dof - dof) as f64).map(|d| d.sf(f)).unwrap_or(1.0)
 }
 
 /// The detail of a finer B-spline on one axis, as an extension of a fitted model: for each of
@@ -640,6 +651,34 @@ mod tests {
         let half = [even(0.0, 0.35, 200), even(-0.5, 0.0, 400), even(-0.7, 0.0, 400)];
         let (_, knots, _) = auto_layout(Topology::parse("FXYZ").unwrap(), travel, &half, &Auto::default(), &[None; 18]);
         assert_eq!(knots[0].intervals, 1, "{knots:?}");
+    }
+
+    #[test]
+    fn refinement_is_measured_against_the_refined_residual() {
+        use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+        let stats = |chi2: f64, dof: usize| crate::estimator::ResidualStats {
+            n_obs: dof + 300,
+            rms_m: 0.0,
+            chi2,
+            dof,
+            variance_factor: chi2 / dof as f64,
+            per_group: Vec::new(),
+        };
+        // 400 residual degrees of freedom, noise at its stated level (chi2 400) plus detail
+        // (chi2 1100 more) that the coarse knots cannot follow, of which the finer knots (78
+        // more parameters) take up a chi2 of 600: against the coarse residual's variance (3.75
+        // per dof, inflated by that very detail) the test would not refine at REFINE_P.
+        let p = refinement_p(600.0, 78, &stats(1500.0, 400));
+        let f = (600.0 / 78.0) / (900.0 / 322.0);
+        assert_eq!(p, FisherSnedecor::new(78.0, 322.0).unwrap().sf(f));
+        assert!(p < REFINE_P, "{p}");
+        let coarse = FisherSnedecor::new(78.0, 400.0).unwrap().sf((600.0 / 78.0) / 3.75);
+        assert!(coarse > REFINE_P, "{coarse}");
+        // Pure noise stays insignificant, and degenerate cases ask for nothing.
+        assert!(refinement_p(78.0, 78, &stats(400.0, 400)) > 0.3);
+        assert_eq!(refinement_p(10.0, 0, &stats(400.0, 400)), 1.0);
+        assert_eq!(refinement_p(10.0, 400, &stats(400.0, 400)), 1.0);
+        assert_eq!(refinement_p(0.0, 78, &stats(400.0, 400)), 1.0);
     }
 
     #[test]
