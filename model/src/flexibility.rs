@@ -92,6 +92,9 @@ impl AxisKnots {
                 "the most that the {} positions along the axis determine; between them the functions are interpolated",
                 self.positions
             ),
+            KnotBound::Data if self.tests.last().is_some_and(|t| !t.determined) => {
+                "the readings' geometry does not determine finer knots".to_string()
+            }
             KnotBound::Data => "finer knots would not explain the readings better".to_string(),
         };
         let tests: Vec<String> = self
