@@ -76,6 +76,19 @@ fn every_case_is_honest_and_smooth_truths_are_near_the_oracle() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// `auto_study`'s case of sparse FXYZ beams over a piecewise truth with a local bump.
+fn sparse_fxyz_beams_over_a_bump() -> volcal_tests::auto_study::Case {
+    suite()
+        .into_iter()
+        .find(|c| {
+            c.family == Family::PiecewiseBump
+                && c.topology == "FXYZ"
+                && c.measure == volcal_tests::auto_study::Measure::Beams
+                && c.density == volcal_tests::auto_study::Density::Sparse
+        })
+        .unwrap()
+}
+
 /// A misfit the model cannot absorb is noise to the smoothing, not detail. Sparse beams (36
 /// lines of 20 points) over a guideway bump narrower than their spacing leave residuals no
 /// smooth function explains (chi2 / dof about 4). With the stated noise taken as exact, REML
@@ -86,15 +99,7 @@ fn every_case_is_honest_and_smooth_truths_are_near_the_oracle() {
 /// the map's error is what its uncertainty says.
 #[test]
 fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
-    let case = suite()
-        .into_iter()
-        .find(|c| {
-            c.family == Family::PiecewiseBump
-                && c.topology == "FXYZ"
-                && c.measure == volcal_tests::auto_study::Measure::Beams
-                && c.density == volcal_tests::auto_study::Density::Sparse
-        })
-        .unwrap();
+    let case = sparse_fxyz_beams_over_a_bump();
     let (campaign, truth) = volcal_tests::auto_study::campaign(&case, 19);
     let o = run_on(&case, &campaign, &truth, &Auto::default());
     let ratio = o.auto_rms_m / o.predicted_rms_m;
@@ -133,15 +138,7 @@ fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
 /// knots, and the refinement is undone).
 #[test]
 fn a_failed_refinement_is_tested_again_after_another_axis_is_refined() {
-    let case = suite()
-        .into_iter()
-        .find(|c| {
-            c.family == Family::PiecewiseBump
-                && c.topology == "FXYZ"
-                && c.measure == volcal_tests::auto_study::Measure::Beams
-                && c.density == volcal_tests::auto_study::Density::Sparse
-        })
-        .unwrap();
+    let case = sparse_fxyz_beams_over_a_bump();
     let (campaign, truth) = volcal_tests::auto_study::campaign(&case, 1);
     let o = run_on(&case, &campaign, &truth, &Auto::default());
     for k in &o.knots {
