@@ -230,6 +230,18 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     if std::env::var_os("AUTO_DEBUG").is_some() {
         let st = &sol.stats;
         eprintln!("  chi2 {:.1} dof {} vf {:.3}", st.chi2, st.dof, st.variance_factor);
+        // Per instrument: where a misfit lies when one noise scale serves both.
+        let mut kinds: Vec<(volcal::campaign::ObsKind, usize, f64)> = Vec::new();
+        for g in &obs.groups {
+            let c: f64 = (g.start..g.end).map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum();
+            match kinds.iter_mut().find(|k| k.0 == g.kind) {
+                Some(k) => (k.1, k.2) = (k.1 + g.len(), k.2 + c),
+                None => kinds.push((g.kind, g.len(), c)),
+            }
+        }
+        for (kind, n, c) in kinds {
+            eprintln!("    {kind:?}: {n} readings, chi2 / n {:.3}", c / n as f64);
+        }
         let lam: std::collections::HashMap<String, (f64, f64)> = sol
             .smoothing
             .as_ref()

@@ -3,8 +3,9 @@
 //! `cargo run --release -p volcal_tests --example auto_study -- [SEEDS] [FIRST_SEED] [FILTER]`
 //! prints, per case, the ratio of map errors (auto / oracle), the Monte Carlo calibration
 //! (actual / predicted map RMS), the honesty figures and the time of one auto solve.
-//! `AUTO_SEEDS=1` adds one line per seed; `AUTO_DEBUG=1` adds each solve's chi-square and, per
-//! function, its error against the truth with its smoothing parameter and effective parameters.
+//! `AUTO_SEEDS=1` adds one line per seed; `AUTO_DEBUG=1` adds each solve's chi-square (also per
+//! instrument) and, per function, its error against the truth with its smoothing parameter and
+//! effective parameters.
 
 use volcal::flexibility::Auto;
 use volcal_tests::auto_study::{run, suite, summarise};
