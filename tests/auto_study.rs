@@ -231,16 +231,19 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         let st = &sol.stats;
         eprintln!("  chi2 {:.1} dof {} vf {:.3}", st.chi2, st.dof, st.variance_factor);
         // Per instrument: where a misfit lies when one noise scale serves both.
-        let mut kinds: Vec<(volcal::campaign::ObsKind, usize, f64)> = Vec::new();
-        for g in &obs.groups {
-            let c: f64 = (g.start..g.end).map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2)).sum();
-            match kinds.iter_mut().find(|k| k.0 == g.kind) {
-                Some(k) => (k.1, k.2) = (k.1 + g.len(), k.2 + c),
-                None => kinds.push((g.kind, g.len(), c)),
+        for kind in [volcal::campaign::ObsKind::Beam, volcal::campaign::ObsKind::Range] {
+            let z2: Vec<f64> = obs
+                .groups_of(kind)
+                .flat_map(|(_, g)| g.range())
+                .map(|i| (sol.residuals[i] / sol.sigmas[i]).powi(2))
+                .collect();
+            if !z2.is_empty() {
+                eprintln!(
+                    "    {kind:?}: {} readings, chi2 / n {:.3}",
+                    z2.len(),
+                    z2.iter().sum::<f64>() / z2.len() as f64
+                );
             }
-        }
-        for (kind, n, c) in kinds {
-            eprintln!("    {kind:?}: {n} readings, chi2 / n {:.3}", c / n as f64);
         }
         let lam: std::collections::HashMap<String, (f64, f64)> = sol
             .smoothing

@@ -328,10 +328,11 @@ pub fn solve_auto(
         if let Some(r) = &f.solution().smoothing {
             smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
         }
+        // The knots before this round's refinements, with its tests recorded.
         let mut kept = knots.clone();
-        for (k, t) in kept.iter_mut().zip(knots.iter()) {
-            if t.tests.last().is_some_and(|t| t.refined) {
-                k.intervals = t.tests.last().unwrap().from;
+        for k in kept.iter_mut() {
+            if let Some(from) = k.tests.last().filter(|t| t.refined).map(|t| t.from) {
+                k.intervals = from;
             }
         }
         previous = Some((f.into_solution(), kept, partial));

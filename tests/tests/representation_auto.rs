@@ -14,7 +14,7 @@ use volcal_formats::model_file::Provenance;
 use volcal_formats::plan::sim_config;
 use volcal_formats::solving::solve_campaign;
 use volcal_sim::{simulate, Plan};
-use volcal_tests::auto_study::{run, run_on, suite, summarise};
+use volcal_tests::auto_study::{campaign, run, run_on, suite, summarise};
 use volcal_tests::truth_families::{draw, Family};
 
 /// Seeds of this test: never used to choose a threshold or a default.
@@ -100,7 +100,7 @@ fn sparse_fxyz_beams_over_a_bump() -> volcal_tests::auto_study::Case {
 #[test]
 fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
     let case = sparse_fxyz_beams_over_a_bump();
-    let (campaign, truth) = volcal_tests::auto_study::campaign(&case, 19);
+    let (campaign, truth) = campaign(&case, 19);
     let o = run_on(&case, &campaign, &truth, &Auto::default());
     let ratio = o.auto_rms_m / o.predicted_rms_m;
     eprintln!(
@@ -139,7 +139,7 @@ fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
 #[test]
 fn a_failed_refinement_is_tested_again_after_another_axis_is_refined() {
     let case = sparse_fxyz_beams_over_a_bump();
-    let (campaign, truth) = volcal_tests::auto_study::campaign(&case, 1);
+    let (campaign, truth) = campaign(&case, 1);
     let o = run_on(&case, &campaign, &truth, &Auto::default());
     for k in &o.knots {
         eprintln!("  {}", k.describe());
