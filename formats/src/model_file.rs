@@ -97,7 +97,11 @@ pub struct KnotsEntry {
     /// Distinct positions of the readings along the axis.
     pub positions: usize,
     pub intervals: usize,
-    /// `limit` (the most allowed), `positions` (the most the positions determine: interpolated
+    /// Where `intervals` goes beyond what the positions determine: the intervals they determine
+    /// (the roughness prior determines the rest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub determined: Option<usize>,
+    /// `limit` (the most allowed), `positions` (the positions bound the knots: interpolated
     /// between them) or `data` (finer knots would not explain the readings better).
     pub bound: String,
     /// The refinement tests (doubling the knots, score test against the smoothed fit).
@@ -206,6 +210,7 @@ impl RepresentationChoice {
                     axis: k.axis.letter().to_string(),
                     positions: k.positions,
                     intervals: k.intervals,
+                    determined: (k.determined < k.intervals).then_some(k.determined),
                     bound: match k.bound {
                         KnotBound::Limit => "limit".into(),
                         KnotBound::Positions => "positions".into(),
