@@ -223,27 +223,25 @@ pub fn auto_layout(
     (layout, knots, smoothing_for(overrides))
 }
 
-/// Knot intervals of an axis whose readings' positions determine at most `most`, fewer than
-/// the start: half as many again, up to `auto.max_intervals`, the roughness prior determining
-/// the coefficients the positions leave open.
+/// Knot intervals of an axis whose readings' positions determine at most `most`: half as many
+/// again, up to `auto.max_intervals`, the roughness prior determining the coefficients the
+/// positions leave open. From the start where `most` is below `auto.start_intervals`, and for
+/// an axis whose refinement reaches `most` ([`widen_at_bound`]).
 ///
 /// Why more than the positions determine: a cubic B-spline with as many coefficients as
 /// positions is fixed by its values there, so between two positions it has no freedom left,
 /// and its uncertainty there is only the noise's at the positions around. The smoothing prior
 /// knows better: between the positions the function may curve as much as the readings show it
 /// curving, and with a few coefficients more it says so, with an uncertainty that grows
-/// between the positions. Measured (`auto_study`, the laser tracer's 11 stops per edge, 8
-/// intervals determined, seeds 1-20): over a truth with a local bump the map error fell from
-/// 4.30 to 2.41 times the oracle's and actual / predicted from 3.71 to 1.67 with 12 intervals
-/// (2.31 and 1.58 with 16), and the smooth truths did not move (0.99 and 0.96 times the
-/// oracle's, actual / predicted 0.96 and 1.06). Not more than half again: with 20 or 24
-/// intervals for the 11 stops the solve no longer held (the prior alone then carries more
-/// directions than the readings do, and the penalised normal matrix lost definiteness). Only at
-/// the start: an axis refined up to the positions' bound stays there. Half again beyond it
-/// (the dense tracer's 21 stops: 27 intervals where 18 are determined) left directions that
-/// neither the readings nor the prior determine to the identifiability analysis's tolerance,
-/// so the refinement was undone (map error over a bump 1.45 -> 2.18 times the oracle's, seeds
-/// 1-20); falling back to the bound then gave what the bound gives.
+/// between the positions. Measured (`auto_study`, truth with a local bump, seeds 1-20 and
+/// held-out 1001-1020): the laser tracer's 11 stops per edge (8 intervals determined, 12
+/// taken) gave 4.30 and 4.64 times the oracle's map error with actual / predicted 3.71 and
+/// 3.99, now 2.41 and 2.62 with 1.67 and 1.75 (16 intervals: 2.31 and 1.58 on seeds 1-20); its
+/// 21 stops (18 determined, 27 taken once refined to 18) gave 1.45 and 2.33 with 1.14 and
+/// 1.81, now 1.38 and 1.42 with 1.09 and 1.11. Smooth truths did not move. Not more than half
+/// again: with 20 or 24 intervals for the 11 stops the solve no longer held (the prior alone
+/// then carries more directions than the readings do, and the penalised normal matrix lost
+/// definiteness).
 pub fn beyond_positions(most: usize, auto: &Auto) -> usize {
     (3 * most).div_ceil(2).min(auto.max_intervals.max(most))
 }
@@ -290,8 +288,9 @@ pub const REFINE_P: f64 = 1e-6;
 /// and the campaign solved again, REML starting from the smoothing found. An axis whose test
 /// failed is tested again after another axis was refined: the detail the coarse knots of one
 /// axis could not fit inflates the residual against which every axis is tested, and part of it
-/// aliases onto the others. `opts` carries the gauge, noise and the rest; its smoothing is
-/// replaced.
+/// aliases onto the others. An axis refined up to what its positions determine then goes half
+/// as far again ([`widen_at_bound`]). `opts` carries the gauge, noise and the rest; its
+/// smoothing is replaced.
 pub fn solve_auto(
     topology: &Topology,
     travel: Travel,
@@ -320,6 +319,8 @@ pub fn solve_auto(
                         t.determined = false;
                     }
                 }
+                let (sol, kept) =
+                    widen_at_bound(sol, kept, &bound, &Context { topology, travel, obs, opts, auto, overrides });
                 return Ok(finish(sol, kept, &bound, auto, &positions, travel));
             }
         }
@@ -365,7 +366,13 @@ pub fn solve_auto(
             }
         }
         if !refined {
-            return Ok(finish(f.into_solution(), knots, &bound, auto, &positions, travel));
+            let (sol, knots) = widen_at_bound(
+                f.into_solution(),
+                knots,
+                &bound,
+                &Context { topology, travel, obs, opts, auto, overrides },
+            );
+            return Ok(finish(sol, knots, &bound, auto, &positions, travel));
         }
         if let Some(r) = &f.solution().smoothing {
             smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
@@ -380,6 +387,54 @@ pub fn solve_auto(
         previous = Some((f.into_solution(), kept, partial));
     }
     unreachable!("the last round never refines")
+}
+
+/// What every fit of [`solve_auto`] shares.
+struct Context<'a> {
+    topology: &'a Topology,
+    travel: Travel,
+    obs: &'a Observations,
+    opts: &'a SolveOptions,
+    auto: &'a Auto,
+    overrides: &'a [Option<Representation>; 18],
+}
+
+/// Axes refined up to the positions' bound go half as far again ([`beyond_positions`]), the
+/// roughness prior determining the rest, as axes bounded from the start do: one more fit,
+/// smoothing starting from `sol`'s, kept unless it fails or leaves more directions undetermined
+/// (by the readings and the prior together) than `sol`. The refinement test itself is of the
+/// knots the positions determine: detail the readings resolve.
+fn widen_at_bound(
+    sol: Solution,
+    knots: [AxisKnots; 3],
+    bound: &[(usize, usize); 3],
+    cx: &Context<'_>,
+) -> (Solution, [AxisKnots; 3]) {
+    let mut wide = knots.clone();
+    let mut widened = false;
+    for (a, k) in wide.iter_mut().enumerate() {
+        let most = bound[a].0;
+        let to = beyond_positions(most, cx.auto);
+        if k.intervals == most && most < cx.auto.max_intervals && to > most {
+            k.intervals = to;
+            widened = true;
+        }
+    }
+    if !widened {
+        return (sol, knots);
+    }
+    let mut smoothing = smoothing_for(cx.overrides);
+    if let Some(r) = &sol.smoothing {
+        smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
+    }
+    let layout = layout_with(cx.topology, cx.travel, wide.clone().map(|k| k.intervals), cx.overrides);
+    let o = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
+    let before =
+        left_open(&sol, &layout_with(cx.topology, cx.travel, knots.clone().map(|k| k.intervals), cx.overrides));
+    match fit(&layout, cx.obs, &o, &[]) {
+        Ok(f) if left_open(f.solution(), &layout) <= before => (f.into_solution(), wide),
+        _ => (sol, knots),
+    }
 }
 
 /// The knots' bounds and the solution's resolution of the chosen layout.
@@ -410,14 +465,24 @@ fn finish(
 /// all (whose count grows with the knots whatever the readings): what a refinement must not
 /// increase.
 fn partly_determined(sol: &Solution, layout: &ModelLayout) -> usize {
-    let id = &sol.identifiability;
-    let unobserved: usize = id
+    sol.identifiability.extra_null_dim.saturating_sub(unobserved_dim(sol, layout))
+}
+
+/// Directions of the functions the readings do not observe at all (beyond each one's gauge
+/// constant).
+fn unobserved_dim(sol: &Solution, layout: &ModelLayout) -> usize {
+    sol.identifiability
         .not_observed
         .iter()
         .filter_map(|name| ErrorFunction::parse(name))
         .map(|f| layout.basis(f).n_coeffs().saturating_sub(1))
-        .sum();
-    id.extra_null_dim.saturating_sub(unobserved)
+        .sum()
+}
+
+/// Directions that neither the readings nor the roughness prior determine, beyond those of
+/// functions the readings do not observe at all.
+fn left_open(sol: &Solution, layout: &ModelLayout) -> usize {
+    sol.undetermined.ncols().saturating_sub(unobserved_dim(sol, layout))
 }
 
 /// p-value of a refinement whose score is `delta_chi2` on `dof` degrees of freedom: the F-test of

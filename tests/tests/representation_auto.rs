@@ -95,33 +95,27 @@ fn sparse_fxyz_beams_over_a_bump() -> volcal_tests::auto_study::Case {
     fxyz_over_a_bump(volcal_tests::auto_study::Measure::Beams, volcal_tests::auto_study::Density::Sparse)
 }
 
-/// Where the positions bound the knots (the tracer's 11 stops per edge determine 8 intervals),
-/// `auto` takes half as many again and lets the roughness prior determine the rest
-/// (`flexibility::beyond_positions`). With only the 8 intervals the positions determine, a
-/// function is fixed by its values at the stops: between them its uncertainty is the noise's
-/// at the stops around, whatever the readings say about how much it curves. Over a truth with
-/// a local bump the stops do not resolve, that under-stated the map's error several times; with
-/// the prior's coefficients the uncertainty between the stops grows with the curvature the
-/// readings show. Both layouts on the same campaigns (this test's seeds): the map's error is
-/// no larger, and what the uncertainty leaves uncovered shrinks.
-#[test]
-fn between_the_stops_the_uncertainty_is_the_priors() {
-    use volcal::flexibility::KnotBound;
-    let case = fxyz_over_a_bump(volcal_tests::auto_study::Measure::Tracer, volcal_tests::auto_study::Density::Sparse);
-    // The knots the positions determine, and no more: the former rule.
-    let determined_only = Auto { start_intervals: 8, max_intervals: 8 };
+/// Where the positions bound the knots, `auto` goes half as far again and lets the roughness
+/// prior determine the rest (`flexibility::beyond_positions`). With only the intervals the
+/// positions determine, a function is fixed by its values at the stops: between them its
+/// uncertainty is the noise's at the stops around, whatever the readings say about how much it
+/// curves. Over a truth with a local bump the stops do not resolve, that under-stated the
+/// map's error; with the prior's coefficients the uncertainty between the stops grows with the
+/// curvature the readings show. Runs `auto` and `determined_only` (the former rule) on the same
+/// campaigns (this test's seeds), checks `auto`'s knots and returns both summaries.
+fn against_the_determined_knots(
+    case: &volcal_tests::auto_study::Case,
+    determined_only: &Auto,
+    knots_ok: impl Fn(&[volcal::flexibility::AxisKnots; 3]) -> bool,
+) -> (volcal_tests::auto_study::Summary, volcal_tests::auto_study::Summary) {
     let (mut beyond, mut only) = (Vec::new(), Vec::new());
     for seed in SEEDS {
-        let o = run(&case, seed, &Auto::default());
-        assert!(
-            o.knots.iter().all(|k| (k.determined, k.intervals, k.bound) == (8, 12, KnotBound::Positions)),
-            "{:?}",
-            o.knots
-        );
-        let p = run(&case, seed, &determined_only);
-        assert!(p.knots.iter().all(|k| k.intervals == 8), "{:?}", p.knots);
+        let o = run(case, seed, &Auto::default());
+        assert!(knots_ok(&o.knots), "{:?}", o.knots);
+        let p = run(case, seed, determined_only);
+        assert!(p.knots.iter().all(|k| k.intervals <= determined_only.max_intervals), "{:?}", p.knots);
         eprintln!(
-            "seed {seed}: 12 intervals: map error {:.3} um, predicted {:.3} um, max |z| {:.2}; 8 intervals: {:.3} um, predicted {:.3} um, max |z| {:.2}",
+            "seed {seed}: auto: map error {:.3} um, predicted {:.3} um, max |z| {:.2}; determined knots only: {:.3} um, predicted {:.3} um, max |z| {:.2}",
             o.auto_rms_m * 1e6,
             o.predicted_rms_m * 1e6,
             o.max_z.max(o.max_z_interpolated),
@@ -134,14 +128,47 @@ fn between_the_stops_the_uncertainty_is_the_priors() {
     }
     let (b, o) = (summarise(&beyond), summarise(&only));
     eprintln!(
-        "12 intervals: {:.3} x oracle, actual / predicted {:.3}; 8 intervals: {:.3} x oracle, actual / predicted {:.3}",
-        b.oracle_ratio, b.mc_ratio, o.oracle_ratio, o.mc_ratio
+        "{}: auto {:.3} x oracle, actual / predicted {:.3}; determined knots only {:.3} x oracle, actual / predicted {:.3}",
+        case.label(),
+        b.oracle_ratio,
+        b.mc_ratio,
+        o.oracle_ratio,
+        o.mc_ratio
     );
+    (b, o)
+}
+
+/// The sparse tracer's 11 stops per edge determine 8 intervals from the start: `auto` takes 12.
+/// The map's error is no larger, and what the uncertainty leaves uncovered shrinks.
+#[test]
+fn between_the_stops_the_uncertainty_is_the_priors() {
+    use volcal::flexibility::KnotBound;
+    let case = fxyz_over_a_bump(volcal_tests::auto_study::Measure::Tracer, volcal_tests::auto_study::Density::Sparse);
+    let (b, o) = against_the_determined_knots(&case, &Auto { start_intervals: 8, max_intervals: 8 }, |knots| {
+        knots.iter().all(|k| (k.determined, k.intervals, k.bound) == (8, 12, KnotBound::Positions))
+    });
     assert!(b.auto_rms_m <= o.auto_rms_m, "map error {} um against {} um", b.auto_rms_m * 1e6, o.auto_rms_m * 1e6);
     assert!(b.mc_ratio < o.mc_ratio, "actual / predicted {} against {}", b.mc_ratio, o.mc_ratio);
-    // (With `max_intervals` 8 the knots are at the limit, not flagged interpolated: compare the
-    // largest |z| over the whole map.)
+    // (With the knots at `max_intervals` they are at the limit, not flagged interpolated:
+    // compare the largest |z| over the whole map.)
     assert!(b.max_z.max(b.max_z_interpolated) < o.max_z.max(o.max_z_interpolated));
+}
+
+/// The dense tracer's 21 stops per edge determine 18 intervals: an axis whose refinement
+/// reaches them gets 27. What this changes depends on whether a bump falls between the stops:
+/// on this test's three seeds it does not matter (1.429 against 1.445 times the oracle's error,
+/// actual / predicted 1.155 against 1.149), so only the knots are checked here; over 20 seeds
+/// (`auto_study`, README) it does: held-out seeds 1001-1020 2.33 -> 1.42 times the oracle,
+/// actual / predicted 1.81 -> 1.11.
+#[test]
+fn an_axis_refined_up_to_its_stops_goes_beyond_them() {
+    let case = fxyz_over_a_bump(volcal_tests::auto_study::Measure::Tracer, volcal_tests::auto_study::Density::Dense);
+    against_the_determined_knots(&case, &Auto { start_intervals: 12, max_intervals: 18 }, |knots| {
+        knots.iter().all(|k| {
+            k.determined == 18
+                && (k.intervals == 12 || (k.intervals == 27 && k.tests.last().is_some_and(|t| t.refined && t.to == 18)))
+        }) && knots.iter().any(|k| k.intervals == 27)
+    });
 }
 
 /// A misfit the model cannot absorb is noise to the smoothing, not detail. Sparse beams (36
