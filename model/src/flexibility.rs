@@ -3,8 +3,8 @@
 //! Two answers live here. [`auto_layout`] is `representation: auto`, the default: per axis a
 //! cubic B-spline whose knots the readings' positions along that axis bound, each function
 //! smoothed by a roughness penalty whose strength REML estimates ([`crate::smoothing`]): the
-//! data choose each function's flexibility. Where the positions are few, the knots go half as
-//! far again as the positions determine, the prior determining the rest
+//! data choose each function's flexibility. Where the positions bound the knots, they go half
+//! as far again as the positions determine, the prior determining the rest
 //! ([`beyond_positions`]): between the positions the uncertainty is then the prior's, not
 //! only the noise's. [`choose`] picks among a given representation and
 //! coarser ones by the Bayesian information criterion of the plain fit, for a campaign still
@@ -209,8 +209,8 @@ fn smoothing_for(overrides: &[Option<Representation>; 18]) -> Smoothing {
 /// The starting `representation: auto` layout for readings at `positions` (per axis, sorted and
 /// distinct: [`crate::identify::DataSummary::positions_of`]), before any refinement: per axis
 /// `auto.start_intervals`, or, where the positions determine fewer, [`beyond_positions`] of
-/// what they determine. Functions given a
-/// representation in `overrides` keep it and are not smoothed.
+/// what they determine. Functions given a representation in `overrides` keep it and are not
+/// smoothed.
 pub fn auto_layout(
     topology: Topology,
     travel: Travel,
@@ -303,6 +303,7 @@ pub fn solve_auto(
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
     let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
     let mut smoothing = smoothing_for(overrides);
+    let cx = Context { topology, travel, obs, opts, auto, overrides };
     // The previous round's solution, knots and partly determined null dimension: a refinement
     // the readings' geometry does not determine is undone.
     let mut previous: Option<(Solution, [AxisKnots; 3], usize)> = None;
@@ -319,8 +320,7 @@ pub fn solve_auto(
                         t.determined = false;
                     }
                 }
-                let (sol, kept) =
-                    widen_at_bound(sol, kept, &bound, &Context { topology, travel, obs, opts, auto, overrides });
+                let (sol, kept) = widen_at_bound(sol, kept, &bound, &cx);
                 return Ok(finish(sol, kept, &bound, auto, &positions, travel));
             }
         }
@@ -366,12 +366,7 @@ pub fn solve_auto(
             }
         }
         if !refined {
-            let (sol, knots) = widen_at_bound(
-                f.into_solution(),
-                knots,
-                &bound,
-                &Context { topology, travel, obs, opts, auto, overrides },
-            );
+            let (sol, knots) = widen_at_bound(f.into_solution(), knots, &bound, &cx);
             return Ok(finish(sol, knots, &bound, auto, &positions, travel));
         }
         if let Some(r) = &f.solution().smoothing {
