@@ -64,9 +64,11 @@ impl Case {
             Density::Dense => Plan::patent_example(),
             Density::Sparse => Plan::short(),
         };
-        let steps = match self.density {
-            Density::Dense => 20.0,
-            Density::Sparse => 10.0,
+        // `AUTO_TRACER_STEPS` overrides the steps per edge (robustness sweeps of `auto_study`).
+        let steps = match (std::env::var("AUTO_TRACER_STEPS").ok().and_then(|v| v.parse::<f64>().ok()), self.density) {
+            (Some(s), _) => s,
+            (None, Density::Dense) => 20.0,
+            (None, Density::Sparse) => 10.0,
         };
         let tracer = Plan { path_step_m: volcal::Axis::ALL.map(|a| travel.length(a) / steps), ..Plan::paper_tracer() };
         match self.measure {

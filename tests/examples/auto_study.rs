@@ -5,7 +5,8 @@
 //! (actual / predicted map RMS), the honesty figures and the time of one auto solve.
 //! `AUTO_SEEDS=1` adds one line per seed; `AUTO_DEBUG=1` adds each solve's chi-square (also per
 //! instrument) and, per function, its error against the truth with its smoothing parameter and
-//! effective parameters.
+//! effective parameters. `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops)
+//! of every case, for robustness sweeps.
 
 use volcal::flexibility::Auto;
 use volcal_tests::auto_study::{run, suite, summarise};
