@@ -246,6 +246,12 @@ pub fn beyond_positions(most: usize, auto: &Auto) -> usize {
     (3 * most).div_ceil(2).min(auto.max_intervals.max(most))
 }
 
+/// The intervals an axis at `intervals` goes to when that is all its positions determine
+/// (`most`) and the limit is not reached: [`beyond_positions`]. `None` otherwise.
+fn widened(intervals: usize, most: usize, auto: &Auto) -> Option<usize> {
+    (intervals == most && most < auto.max_intervals).then(|| beyond_positions(most, auto))
+}
+
 /// [`auto_layout`] for the knot bounds `bound` of [`positions_bound`].
 fn auto_layout_within(
     topology: Topology,
@@ -257,10 +263,9 @@ fn auto_layout_within(
     let knots = Axis::ALL.map(|axis| {
         let (most, n) = bound[axis.index()];
         let intervals = most.min(auto.start_intervals.max(1));
-        let (intervals, bound) = if intervals == most && most < auto.max_intervals {
-            (beyond_positions(most, auto), KnotBound::Positions)
-        } else {
-            (intervals, KnotBound::Data)
+        let (intervals, bound) = match widened(intervals, most, auto) {
+            Some(to) => (to, KnotBound::Positions),
+            None => (intervals, KnotBound::Data),
         };
         AxisKnots { axis, positions: n, intervals, determined: most, bound, tests: Vec::new() }
     });
@@ -304,15 +309,15 @@ pub fn solve_auto(
     let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
     let mut smoothing = smoothing_for(overrides);
     let cx = Context { topology, travel, obs, opts, auto, overrides };
-    // The previous round's solution, knots and partly determined null dimension: a refinement
-    // the readings' geometry does not determine is undone.
-    let mut previous: Option<(Solution, [AxisKnots; 3], usize)> = None;
+    // The previous round's solution, knots, layout and partly determined null dimension: a
+    // refinement the readings' geometry does not determine is undone.
+    let mut previous: Option<(Solution, [AxisKnots; 3], ModelLayout, usize)> = None;
     for round in 0..=REFINE_ROUNDS {
         let layout = layout_with(topology, travel, knots.clone().map(|k| k.intervals), overrides);
         let o = SolveOptions { smoothing: Some(smoothing.clone()), ..opts.clone() };
         let f = fit(&layout, obs, &o, &[])?;
         let partial = partly_determined(f.solution(), &layout);
-        if let Some((sol, mut kept, before)) = previous.take() {
+        if let Some((sol, mut kept, kept_layout, before)) = previous.take() {
             if partial > before {
                 for k in kept.iter_mut() {
                     if let Some(t) = k.tests.last_mut().filter(|t| t.refined) {
@@ -320,7 +325,7 @@ pub fn solve_auto(
                         t.determined = false;
                     }
                 }
-                let (sol, kept) = widen_at_bound(sol, kept, &bound, &cx);
+                let (sol, kept) = widen_at_bound(sol, kept, &kept_layout, &bound, &cx);
                 return Ok(finish(sol, kept, &bound, auto, &positions, travel));
             }
         }
@@ -366,11 +371,11 @@ pub fn solve_auto(
             }
         }
         if !refined {
-            let (sol, knots) = widen_at_bound(f.into_solution(), knots, &bound, &cx);
+            let (sol, knots) = widen_at_bound(f.into_solution(), knots, &layout, &bound, &cx);
             return Ok(finish(sol, knots, &bound, auto, &positions, travel));
         }
         if let Some(r) = &f.solution().smoothing {
-            smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
+            smoothing = smoothing.continued_from(r);
         }
         // The knots before this round's refinements, with its tests recorded.
         let mut kept = knots.clone();
@@ -379,7 +384,7 @@ pub fn solve_auto(
                 k.intervals = from;
             }
         }
-        previous = Some((f.into_solution(), kept, partial));
+        previous = Some((f.into_solution(), kept, layout, partial));
     }
     unreachable!("the last round never refines")
 }
@@ -397,37 +402,35 @@ struct Context<'a> {
 /// Axes refined up to the positions' bound go half as far again ([`beyond_positions`]), the
 /// roughness prior determining the rest, as axes bounded from the start do: one more fit,
 /// smoothing starting from `sol`'s, kept unless it fails or leaves more directions undetermined
-/// (by the readings and the prior together) than `sol`. The refinement test itself is of the
-/// knots the positions determine: detail the readings resolve.
+/// (by the readings and the prior together) than `sol` on its `layout`. The refinement test
+/// itself is of the knots the positions determine: detail the readings resolve.
 fn widen_at_bound(
     sol: Solution,
     knots: [AxisKnots; 3],
+    layout: &ModelLayout,
     bound: &[(usize, usize); 3],
     cx: &Context<'_>,
 ) -> (Solution, [AxisKnots; 3]) {
     let mut wide = knots.clone();
-    let mut widened = false;
+    let mut any = false;
     for (a, k) in wide.iter_mut().enumerate() {
-        let most = bound[a].0;
-        let to = beyond_positions(most, cx.auto);
-        if k.intervals == most && most < cx.auto.max_intervals && to > most {
+        if let Some(to) = widened(k.intervals, bound[a].0, cx.auto).filter(|&to| to > k.intervals) {
             k.intervals = to;
-            widened = true;
+            any = true;
         }
     }
-    if !widened {
+    if !any {
         return (sol, knots);
     }
     let mut smoothing = smoothing_for(cx.overrides);
     if let Some(r) = &sol.smoothing {
-        smoothing = Smoothing { penalised: smoothing.penalised, ..Smoothing::starting_from(r) };
+        smoothing = smoothing.continued_from(r);
     }
-    let layout = layout_with(cx.topology, cx.travel, wide.clone().map(|k| k.intervals), cx.overrides);
+    let wide_layout = layout_with(cx.topology, cx.travel, wide.clone().map(|k| k.intervals), cx.overrides);
     let o = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
-    let before =
-        left_open(&sol, &layout_with(cx.topology, cx.travel, knots.clone().map(|k| k.intervals), cx.overrides));
-    match fit(&layout, cx.obs, &o, &[]) {
-        Ok(f) if left_open(f.solution(), &layout) <= before => (f.into_solution(), wide),
+    let before = left_open(&sol, layout);
+    match fit(&wide_layout, cx.obs, &o, &[]) {
+        Ok(f) if left_open(f.solution(), &wide_layout) <= before => (f.into_solution(), wide),
         _ => (sol, knots),
     }
 }

@@ -94,6 +94,12 @@ impl Smoothing {
     pub fn starting_from(report: &SmoothingReport) -> Smoothing {
         Smoothing { estimate: true, ..Smoothing::fixed_from(report) }
     }
+
+    /// These penalties (the same functions penalised), REML starting from the parameters a
+    /// solve estimated: the next fit of a layout search, on other knots.
+    pub fn continued_from(&self, report: &SmoothingReport) -> Smoothing {
+        Smoothing { penalised: self.penalised, ..Smoothing::starting_from(report) }
+    }
 }
 
 /// How one function was smoothed.
