@@ -15,6 +15,14 @@
 //! Duplicated messages (same trigger id, or same stamp and line for free-running samples) are
 //! counted and ignored; out-of-order messages wait until their partners arrive. Pairs come out
 //! in completion order; consumers sort by stamp.
+//!
+//! A lost count is never lost with the reading that reported it. `beam_broken` says that the
+//! instrument's count restarted before that reading, so the estimator gives what follows a new
+//! origin. When the reading that says so is not recorded (a centring probe, a free-running
+//! sample outside every segment), the next recorded reading of its line carries the flag. For
+//! example, an interferometer restarted in the middle of a line re-establishes its count at the
+//! probe before the next point; without the carry-over, every later point of the line would be
+//! one step off with nothing to say so.
 
 use nalgebra::{Point3, Vector3};
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -150,6 +158,12 @@ pub struct PairingStats {
     pub outside_segments: u64,
     /// Free-running readings in a segment without machine samples close enough on both sides.
     pub unbracketed: u64,
+    /// Count losses reported by readings that are not recorded (centring probes, free-running
+    /// samples outside segments), carried over to the next recorded reading of their line.
+    pub carried_breaks: u64,
+    /// Of those, the ones that arrived after a later reading of their line had been paired:
+    /// that reading went out without the flag, so its line is suspect there.
+    pub late_breaks: u64,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -167,6 +181,9 @@ struct Segment {
 
 type FreeKey = (i64, ObsKind, u32, u32);
 
+/// A line: instrument kind, station, beam or path.
+type LineKey = (ObsKind, u32, u32);
+
 /// The pairing state machine.
 #[derive(Default)]
 pub struct Pairer {
@@ -176,7 +193,8 @@ pub struct Pairer {
     readings: HashMap<u64, ReadingEvent>,
     positions: HashMap<u64, PositionEvent>,
     closed: HashSet<u64>,
-    probes: HashSet<u64>,
+    /// Centring probes, with their line.
+    probes: HashMap<u64, LineKey>,
     /// Duplicates seen for ids whose trigger has not arrived yet (a probe's are not counted).
     pending_duplicates: HashMap<u64, u64>,
     // On the fly.
@@ -188,6 +206,12 @@ pub struct Pairer {
     paired_free: BTreeMap<FreeKey, ()>,
     track: BTreeMap<i64, PositionEvent>,
     environment: BTreeMap<i64, EnvironmentEvent>,
+    // Count losses.
+    /// Per line, the stamp of the earliest count loss reported by a reading that is not
+    /// recorded and not yet carried over to a recorded one.
+    unrecorded_breaks: HashMap<LineKey, i64>,
+    /// Per line, the latest reading stamp among the pairs that went out.
+    last_pair_ns: HashMap<LineKey, i64>,
     latest_ns: i64,
     expired_at_ns: i64,
     stats: PairingStats,
@@ -230,8 +254,11 @@ impl Pairer {
             }
             trigger_type::PROBE => {
                 // Centring probes are not paired; their messages are neither pairs nor duplicates.
-                self.probes.insert(t.id);
-                self.readings.remove(&t.id);
+                let line = (t.kind, t.station, t.line);
+                self.probes.insert(t.id, line);
+                if let Some(r) = self.readings.remove(&t.id) {
+                    self.not_recorded(line, &r);
+                }
                 self.positions.remove(&t.id);
                 if let Some(n) = self.pending_duplicates.remove(&t.id) {
                     self.stats.duplicates -= n;
@@ -297,7 +324,8 @@ impl Pairer {
     pub fn reading(&mut self, r: ReadingEvent, out: &mut Vec<Pair>) {
         self.see(r.stamp_ns);
         if r.trigger_id != 0 {
-            if self.probes.contains(&r.trigger_id) {
+            if let Some(&line) = self.probes.get(&r.trigger_id) {
+                self.not_recorded(line, &r);
                 return;
             }
             if self.closed.contains(&r.trigger_id) {
@@ -355,7 +383,7 @@ impl Pairer {
             };
         // (`seen` is false for latched positions, which are not tracked.)
         if p.trigger_id != 0 {
-            if self.probes.contains(&p.trigger_id) {
+            if self.probes.contains_key(&p.trigger_id) {
                 return;
             }
             if self.closed.contains(&p.trigger_id) {
@@ -411,6 +439,7 @@ impl Pairer {
         self.pending_duplicates.remove(&id);
         self.stats.trigger_pairs += 1;
         let machine_ns = p.stamp_ns - self.cfg.clock_offset_ns;
+        let beam_broken = self.recorded((t.kind, t.station, t.line), &r);
         out.push(Pair {
             kind: t.kind,
             station: t.station,
@@ -421,12 +450,49 @@ impl Pairer {
             x: p.x,
             probe_offset: p.probe_offset,
             velocity: p.velocity,
-            beam_broken: r.beam_broken,
+            beam_broken,
             method: Method::Trigger,
             gap_s: (r.stamp_ns - machine_ns).abs() as f64 * 1e-9,
             trigger_id: id,
             environment: self.environment_at(r.stamp_ns),
         });
+    }
+
+    /// A reading of `line` that will not be recorded: a count loss it reports goes to the next
+    /// recorded reading of the line.
+    fn not_recorded(&mut self, line: LineKey, r: &ReadingEvent) {
+        if !r.beam_broken {
+            return;
+        }
+        if self.last_pair_ns.get(&line).is_some_and(|&s| s > r.stamp_ns) {
+            // A later reading of the line went out without the flag. The next one still gets
+            // it, so that the rest of the line keeps its own origin.
+            self.stats.late_breaks += 1;
+        }
+        let b = self.unrecorded_breaks.entry(line).or_insert(r.stamp_ns);
+        *b = (*b).min(r.stamp_ns);
+    }
+
+    /// Whether a reading about to be recorded on `line` starts a new count: its own flag, or a
+    /// count loss that an unrecorded reading of the line reported before it. A loss before the
+    /// line's first recorded reading separates nothing (e.g. the beam not yet met on the way to
+    /// an on-the-fly line's start) and is dropped.
+    fn recorded(&mut self, line: LineKey, r: &ReadingEvent) -> bool {
+        let before = self.last_pair_ns.insert(line, r.stamp_ns);
+        if let Some(b) = before {
+            self.last_pair_ns.insert(line, b.max(r.stamp_ns));
+        }
+        match self.unrecorded_breaks.get(&line) {
+            Some(&b) if b <= r.stamp_ns => {
+                self.unrecorded_breaks.remove(&line);
+                if before.is_none() {
+                    return r.beam_broken;
+                }
+                self.stats.carried_breaks += 1;
+                true
+            }
+            _ => r.beam_broken,
+        }
     }
 
     /// The closed segment containing a free-running reading. Readings of a segment still open
@@ -459,15 +525,18 @@ impl Pairer {
             let after = self.track.range(t..).next().map(|(_, p)| *p);
             let (Some(p0), Some(p1)) = (before, after) else {
                 self.stats.unbracketed += 1;
+                self.not_recorded((r.kind, r.station, r.line), &r);
                 continue;
             };
             let gap = p1.stamp_ns - p0.stamp_ns;
             if gap > self.cfg.max_gap_ns {
                 self.stats.unbracketed += 1;
+                self.not_recorded((r.kind, r.station, r.line), &r);
                 continue;
             }
             let Some(si) = self.segment_of(k) else {
                 self.stats.outside_segments += 1;
+                self.not_recorded((r.kind, r.station, r.line), &r);
                 continue;
             };
             let (x, v) = if gap > 0 {
@@ -482,6 +551,7 @@ impl Pairer {
             seg.next_point += 1;
             self.paired_free.insert(k, ());
             self.stats.interpolated_pairs += 1;
+            let beam_broken = self.recorded((r.kind, r.station, r.line), &r);
             out.push(Pair {
                 kind: r.kind,
                 station: r.station,
@@ -492,7 +562,7 @@ impl Pairer {
                 x,
                 probe_offset: p0.probe_offset,
                 velocity: v,
-                beam_broken: r.beam_broken,
+                beam_broken,
                 method: Method::Interpolated,
                 gap_s: gap as f64 * 1e-9,
                 trigger_id: segment_end,
@@ -515,7 +585,9 @@ impl Pairer {
                 self.waiting_segment.range(..(limit, ObsKind::Beam, 0, 0)).map(|(k, _)| *k).collect();
             for k in old {
                 if !self.in_open_segment(k) {
-                    self.waiting_segment.remove(&k);
+                    if let Some(r) = self.waiting_segment.remove(&k) {
+                        self.not_recorded((r.kind, r.station, r.line), &r);
+                    }
                     self.stats.outside_segments += 1;
                 }
             }
@@ -662,6 +734,57 @@ mod tests {
             assert_eq!(s.duplicates, n_dups, "round {round}");
             assert_eq!((s.conflicts, s.incomplete_points), (0, 0));
         }
+    }
+
+    /// The static events with the probe reading before point `k` reporting a lost count.
+    fn probe_breaks_before(k: u64) -> Vec<Ev> {
+        let mut evs = static_events(20);
+        for e in evs.iter_mut() {
+            if let Ev::R(r) = e {
+                if r.trigger_id == 2 * k + 1 {
+                    r.beam_broken = true;
+                }
+            }
+        }
+        evs
+    }
+
+    fn broken_points(pairs: &[Pair]) -> Vec<(u32, u32)> {
+        pairs.iter().filter(|p| p.beam_broken).map(|p| (p.line, p.point)).collect()
+    }
+
+    /// An instrument restarted in the middle of a line re-establishes its count at the probe
+    /// before the next point: that probe is not recorded, so the point must say it.
+    #[test]
+    fn a_count_lost_at_a_probe_is_carried_to_the_next_point() {
+        let mut pairer = Pairer::new(PairingConfig::default());
+        let got = feed(&mut pairer, &probe_breaks_before(4));
+        assert_eq!(got.len(), 20);
+        assert_eq!(broken_points(&got), vec![(0, 4)]);
+        assert_eq!((pairer.stats().carried_breaks, pairer.stats().late_breaks), (1, 0));
+
+        // The probe's reading before its trigger: kept until the trigger says it is a probe.
+        let mut evs = probe_breaks_before(4);
+        let r = evs.iter().position(|e| matches!(e, Ev::R(r) if r.trigger_id == 9)).unwrap();
+        let t = evs.iter().position(|e| matches!(e, Ev::T(t) if t.id == 9)).unwrap();
+        evs.swap(r, t);
+        assert_eq!(broken_points(&feed(&mut Pairer::new(PairingConfig::default()), &evs)), vec![(0, 4)]);
+
+        // The probe's reading after point 4 went out: counted as late, and point 5 still
+        // starts a new count, so that the rest of the line keeps its own origin.
+        let mut evs = probe_breaks_before(4);
+        let r = evs.iter().position(|e| matches!(e, Ev::R(r) if r.trigger_id == 9)).unwrap();
+        let late = evs.remove(r);
+        let p5 = evs.iter().position(|e| matches!(e, Ev::T(t) if t.id == 11)).unwrap();
+        evs.insert(p5, late);
+        let mut pairer = Pairer::new(PairingConfig::default());
+        assert_eq!(broken_points(&feed(&mut pairer, &evs)), vec![(0, 5)]);
+        assert_eq!(pairer.stats().late_breaks, 1);
+
+        // A loss before a line's first recorded point separates nothing.
+        let mut pairer = Pairer::new(PairingConfig::default());
+        assert!(broken_points(&feed(&mut pairer, &probe_breaks_before(10))).is_empty());
+        assert_eq!(pairer.stats().carried_breaks, 0);
     }
 
     #[test]

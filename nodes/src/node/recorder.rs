@@ -268,6 +268,12 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         summary.bytes as f64 / 1e6
     );
     log::info!("{}", describe_pairing(n_pairs, &stats));
+    if stats.late_breaks > 0 {
+        log::warn!(
+            "{} count loss(es) reported by unrecorded readings (centring probes, free-running samples) arrived after a later point of their line had been paired: the next point carries the loss, but the point before it may hang on the previous origin (its line's residuals in `volcal solve` show it)",
+            stats.late_breaks
+        );
+    }
     log::info!(
         "recorder CPU {:.1} % of one core over {:.1} s ({:.2} s user+system)",
         100.0 * cpu / elapsed.max(1e-9),
@@ -280,7 +286,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
 /// One line on the pairing outcome.
 pub fn describe_pairing(n_pairs: u64, s: &PairingStats) -> String {
     format!(
-        "pairs: {n_pairs} ({} by trigger, {} interpolated); ignored: {} duplicated and {} conflicting messages; {} incomplete points; {} free-running readings outside segments, {} without machine samples around them",
-        s.trigger_pairs, s.interpolated_pairs, s.duplicates, s.conflicts, s.incomplete_points, s.outside_segments, s.unbracketed
+        "pairs: {n_pairs} ({} by trigger, {} interpolated); ignored: {} duplicated and {} conflicting messages; {} incomplete points; {} free-running readings outside segments, {} without machine samples around them; {} count loss(es) on unrecorded readings carried to the next point of their line",
+        s.trigger_pairs,
+        s.interpolated_pairs,
+        s.duplicates,
+        s.conflicts,
+        s.incomplete_points,
+        s.outside_segments,
+        s.unbracketed,
+        s.carried_breaks
     )
 }
