@@ -117,8 +117,8 @@ pub struct RefinementEntry {
     pub dof: usize,
     pub p_value: f64,
     pub refined: bool,
-    /// False: the readings' geometry does not determine the finer knots; the refinement was
-    /// undone.
+    /// False: neither the readings' geometry nor the roughness prior determines the finer knots;
+    /// the refinement was undone.
     #[serde(default = "yes")]
     pub determined: bool,
 }
