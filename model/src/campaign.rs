@@ -36,6 +36,15 @@ impl ObsKind {
         }
     }
 
+    /// What a line of this kind is called in messages: a `beam` (fixed-beam) or a `path`
+    /// (tracer), as in "station 1 beam 4".
+    pub fn line_word(self) -> &'static str {
+        match self {
+            ObsKind::Beam => "beam",
+            ObsKind::Range => "path",
+        }
+    }
+
     pub fn parse(s: &str) -> Option<ObsKind> {
         match s.trim() {
             "beam" => Some(ObsKind::Beam),

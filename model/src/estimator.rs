@@ -1066,6 +1066,8 @@ pub fn fit<'a>(
         (active_groups.iter().flat_map(|&g| obs.groups[g].range()).map(|i| final_res.residual[i].powi(2)).sum::<f64>()
             / n_obs.max(1) as f64)
             .sqrt();
+    let active: Vec<LineGroup> = active_groups.iter().map(|&g| obs.groups[g].clone()).collect();
+    warnings.extend(crate::misfit::gross_misfit(chi2, dof, &active, &final_res.residual, &prob.sigma));
     let model = ErrorModel { layout: layout.clone(), u: state.d[..n_u].to_vec() };
     let solution = Solution {
         model,

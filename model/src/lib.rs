@@ -32,6 +32,7 @@ pub mod gauge;
 mod halves;
 pub mod identify;
 pub mod kinematics;
+pub mod misfit;
 pub mod model;
 mod normal;
 mod nullspace;
