@@ -478,10 +478,8 @@ impl Pairer {
     /// line's first recorded reading separates nothing (e.g. the beam not yet met on the way to
     /// an on-the-fly line's start) and is dropped.
     fn recorded(&mut self, line: LineKey, r: &ReadingEvent) -> bool {
-        let before = self.last_pair_ns.insert(line, r.stamp_ns);
-        if let Some(b) = before {
-            self.last_pair_ns.insert(line, b.max(r.stamp_ns));
-        }
+        let before = self.last_pair_ns.get(&line).copied();
+        self.last_pair_ns.insert(line, before.map_or(r.stamp_ns, |last| last.max(r.stamp_ns)));
         match self.unrecorded_breaks.get(&line) {
             Some(&b) if b <= r.stamp_ns => {
                 self.unrecorded_breaks.remove(&line);
