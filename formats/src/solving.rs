@@ -98,7 +98,7 @@ pub fn summary(model: &ErrorModel, unc: &Uncertainty<'_>, file: &ModelFile, offs
                 .map(|w| format!(
                     "; worst line: station {} {} {} RMS {:.4} um",
                     w.station,
-                    if w.kind == "beam" { "beam" } else { "path" },
+                    volcal::ObsKind::parse(&w.kind).unwrap_or(volcal::ObsKind::Range).line_word(),
                     w.line,
                     w.rms_m * 1e6
                 ))

@@ -22,7 +22,7 @@ const NAMED_LINES: usize = 3;
 /// `None` below the threshold.
 pub fn gross_misfit(chi2: f64, dof: usize, groups: &[LineGroup], residuals: &[f64], sigmas: &[f64]) -> Option<String> {
     let vf = chi2 / dof.max(1) as f64;
-    if !(vf > GROSS_VARIANCE_FACTOR) {
+    if vf.is_nan() || vf <= GROSS_VARIANCE_FACTOR {
         return None;
     }
     let mut shares: Vec<(f64, &LineGroup, f64)> = groups
