@@ -4,7 +4,8 @@
 //! (`rerun rrd verify`) and read by an independent Python reader (`check_rrd.py --live`), which
 //! takes the campaign's lines from the recorded bag (rosbags) and checks that every one has its
 //! live entities (commanded beam, points, running fit, one residual per reading), and that the
-//! deflector state, the current point, the status and the running RMS are there.
+//! deflector state, the current point, the status and the running RMS are there. A second viz
+//! node that never hears the deflector's commands still draws every commanded beam.
 
 mod common;
 
@@ -24,10 +25,30 @@ fn viz_node_records_a_live_campaign() {
     // The viz node first: it must hear every pair.
     let mut viz = Launch::start(&launch_config("viz.yaml"), None, lease.id, &[&rerun_arg, &report_arg]);
     viz.wait_for("the viz node", Duration::from_secs(60), |l| l.contains("showing the campaign live in Rerun"));
+    // A second viewer that never hears `/deflector/command` (remapped away), as a viewer does
+    // whose subscription discovery matched after a command went out (the topic is volatile):
+    // it must still draw every commanded beam, from the deflector's settled state.
+    let blind_rrd = dir.join("live_without_commands.rrd");
+    let blind_config = dir.join("viz_without_commands.yaml");
+    let config = std::fs::read_to_string(launch_config("viz.yaml")).unwrap().replace(
+        "      name: viz\n",
+        &format!(
+            "      name: viz_without_commands\n      remap:\n        - {{from: {}, to: /unheard}}\n",
+            topics::DEFLECTOR_COMMAND
+        ),
+    );
+    assert!(config.contains("/unheard"), "viz.yaml no longer has the node line this test edits");
+    std::fs::write(&blind_config, config).unwrap();
+    let machine_arg = format!("machine:={}", launch_config("machines/demo_cmm.yaml").display());
+    let blind_rerun_arg = format!("rerun:={}", blind_rrd.display());
+    let mut blind = Launch::start(&blind_config, None, lease.id, &[&machine_arg, &blind_rerun_arg]);
+    blind.wait_for("the viz node without commands", Duration::from_secs(60), |l| {
+        l.contains("showing the campaign live in Rerun")
+    });
     let probe = test_node("rerun_live_probe", lease.id);
     let t = Instant::now();
-    while probe.ros_node().subscription_count(topics::PAIRS) == 0 {
-        assert!(t.elapsed() < Duration::from_secs(30), "the viz node did not subscribe to {}", topics::PAIRS);
+    while probe.ros_node().subscription_count(topics::PAIRS) < 2 {
+        assert!(t.elapsed() < Duration::from_secs(30), "the viz nodes did not subscribe to {}", topics::PAIRS);
         std::thread::sleep(Duration::from_millis(50));
     }
     drop(probe);
@@ -42,8 +63,11 @@ fn viz_node_records_a_live_campaign() {
     // it (it finishes the recording).
     std::thread::sleep(Duration::from_millis(2000));
     viz.interrupt();
+    blind.interrupt();
     let (st, out) = viz.wait(Duration::from_secs(30));
     assert!(st.success(), "viz launch failed:\n{out}");
+    let (st, blind_out) = blind.wait(Duration::from_secs(30));
+    assert!(st.success(), "viz launch without commands failed:\n{blind_out}");
     eprintln!("{}", out.lines().filter(|l| l.contains("viz:")).collect::<Vec<_>>().join("\n"));
 
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
@@ -54,4 +78,6 @@ fn viz_node_records_a_live_campaign() {
     let Some(py) = volcal_tests::checker_python() else { return };
     rrd::verify(&py, &rrd);
     rrd::check_entities(&py, &["--live".as_ref(), rrd.as_os_str(), bag.as_os_str()]);
+    rrd::verify(&py, &blind_rrd);
+    rrd::check_entities(&py, &["--live".as_ref(), blind_rrd.as_os_str(), bag.as_os_str()]);
 }

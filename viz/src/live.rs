@@ -260,6 +260,13 @@ impl LiveViz {
         Ok(())
     }
 
+    /// Whether the beam `(station, beam)` has been drawn as commanded: a viewer that joined
+    /// after a command went out (`/deflector/command` is volatile) draws it from the first
+    /// settled `/deflector/state` instead.
+    pub fn is_commanded(&self, station: u32, beam: u32) -> bool {
+        self.commanded.contains_key(&(station, beam))
+    }
+
     /// Length of a beam from the device to where it leaves the working volume (1 m when the
     /// volume is not known or the beam misses it).
     fn beam_length(&self, state: &DeflectorState) -> f64 {

@@ -219,19 +219,25 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 (o, direction_from_angles(m.azimuth_rad, m.elevation_rad))
             };
             report.deflector_messages += 1;
-            viz.deflector_state(
-                ts(m.header.stamp.to_nanos(), t0_ns),
-                DeflectorState {
-                    station: m.station,
-                    beam: m.beam,
-                    origin,
-                    direction,
-                    azimuth_rad: m.azimuth_rad,
-                    elevation_rad: m.elevation_rad,
-                    settled: m.settled,
-                },
-            );
-            Ok(())
+            let state = DeflectorState {
+                station: m.station,
+                beam: m.beam,
+                origin,
+                direction,
+                azimuth_rad: m.azimuth_rad,
+                elevation_rad: m.elevation_rad,
+                settled: m.settled,
+            };
+            let t = ts(m.header.stamp.to_nanos(), t0_ns);
+            // A command sent before discovery matched this subscription is missed (the
+            // topic is volatile); the settled beam, whose geometry the deflector reports,
+            // stands in for it.
+            if m.settled && m.geometry_known && !viz.is_commanded(m.station, m.beam) {
+                viz.beam_command(t, state)
+            } else {
+                viz.deflector_state(t, state);
+                Ok(())
+            }
         })?;
         positions.drain(|m| {
             let stamp = m.header.stamp.to_nanos();
