@@ -109,6 +109,10 @@ pub struct Outcome {
     pub auto_rms_m: f64,
     pub oracle_rms_m: f64,
     pub predicted_rms_m: f64,
+    /// The same two at the points where the readings resolve the map (not interpolated
+    /// between measured positions; all points where no axis is bounded by its positions).
+    pub auto_rms_resolved_m: f64,
+    pub predicted_rms_resolved_m: f64,
     /// Largest |error component| / its standard uncertainty, and how many (point, offset,
     /// component) values exceed 3, at points where the readings resolve the map.
     pub max_z: f64,
@@ -192,6 +196,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     };
     let unc = sol.uncertainty();
     let (mut a2, mut o2, mut p2, mut n) = (0.0, 0.0, 0.0, 0usize);
+    let (mut a2r, mut p2r, mut nr) = (0.0, 0.0, 0usize);
     let (mut max_z, mut over_3, mut values, mut undetermined, mut points) = (0.0f64, 0, 0, 0, 0);
     let (mut max_zi, mut over_3i, mut values_i) = (0.0f64, 0, 0);
     for x in predict::grid(&travel, 0.1) {
@@ -227,6 +232,11 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
             o2 += d_o.norm_squared();
             p2 += pe.cov.trace();
             n += 1;
+            if !pe.interpolated {
+                a2r += d.norm_squared();
+                p2r += pe.cov.trace();
+                nr += 1;
+            }
         }
     }
     if std::env::var_os("AUTO_DEBUG").is_some() {
@@ -276,10 +286,13 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         }
     }
     let n = n.max(1) as f64;
+    let nr = nr.max(1) as f64;
     Outcome {
         auto_rms_m: (a2 / n).sqrt(),
         oracle_rms_m: (o2 / n).sqrt(),
         predicted_rms_m: (p2 / n).sqrt(),
+        auto_rms_resolved_m: (a2r / nr).sqrt(),
+        predicted_rms_resolved_m: (p2r / nr).sqrt(),
         max_z,
         over_3,
         values,
@@ -308,6 +321,8 @@ pub struct Summary {
     /// campaign's map error is dominated by a few long-wavelength components. Approximate: with
     /// 20 seeds of such a skewed quantity it is too narrow (README).
     pub mc_ratio_95: (f64, f64),
+    /// `mc_ratio` at the points where the readings resolve the map ([`Outcome`]).
+    pub mc_ratio_resolved: f64,
     pub auto_rms_m: f64,
     pub oracle_rms_m: f64,
     pub max_z: f64,
@@ -331,6 +346,7 @@ pub fn summarise(outcomes: &[Outcome]) -> Summary {
         oracle_ratio: a / o,
         mc_ratio: a / p,
         mc_ratio_95: bootstrap_95(outcomes, |o| (o.auto_rms_m.powi(2), o.predicted_rms_m.powi(2))),
+        mc_ratio_resolved: ms(&|o| o.auto_rms_resolved_m) / ms(&|o| o.predicted_rms_resolved_m),
         auto_rms_m: a,
         oracle_rms_m: o,
         max_z: outcomes.iter().map(|o| o.max_z).fold(0.0, f64::max),

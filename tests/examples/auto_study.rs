@@ -68,5 +68,6 @@ fn main() {
             k[2].describe(),
             outcomes[0].edf
         );
+        eprintln!("  actual / predicted at the points the readings resolve: {:.3}", s.mc_ratio_resolved);
     }
 }
