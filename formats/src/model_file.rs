@@ -135,7 +135,8 @@ pub struct SmoothingEntry {
     /// Effective number of parameters (of `n_coeffs`).
     pub edf: f64,
     pub n_coeffs: usize,
-    /// The data show no detail beyond a parabola (the smoothing at its limit).
+    /// The data show no detail beyond a parabola (the smoothing at its limit: the detail floor,
+    /// `volcal::smoothing::DETAIL_FLOOR` parameters of detail, is what remains of it).
     pub smoothest: bool,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub shared_with: Vec<String>,
@@ -171,7 +172,12 @@ impl RepresentationChoice {
                 if curved.is_empty() { "none curved".to_string() } else { curved.join(", ") }
             ));
             if !smoothest.is_empty() {
-                statements.push(format!("The readings show no detail beyond a parabola in {}.", smoothest.join(", ")));
+                statements.push(format!(
+                    "The readings show no detail beyond a parabola in {}; their uncertainty keeps {} parameters' \
+                     worth of detail that the readings could not reveal (a local feature between them is not ruled out).",
+                    smoothest.join(", "),
+                    volcal::smoothing::DETAIL_FLOOR
+                ));
             }
             if r.noise_scale > 1.0 {
                 statements.push(format!(
