@@ -264,20 +264,22 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
             .unwrap_or_default();
         for f in volcal::ErrorFunction::all() {
             let [lo, hi] = travel.range(f.axis);
-            let (mut e2, mut t2, mut m) = (0.0, 0.0, 0.0f64);
+            let (mut e2, mut t2, mut m, mut s2) = (0.0, 0.0, 0.0f64, 0.0);
             for i in 0..=200 {
                 let q = lo + (hi - lo) * i as f64 / 200.0;
                 let t = aligned.function_value(f, q);
                 let d = sol.model.function_value(f, q) - t;
+                s2 += predict::function_sigma(&sol.model, &unc, f, q).powi(2);
                 e2 += d * d;
                 t2 += t * t;
                 m = m.max(d.abs());
             }
             let (l, edf) = lam.get(&f.name()).copied().unwrap_or((0.0, 0.0));
             eprintln!(
-                "   {:>4}: err rms {:.3e} max {:.3e} truth rms {:.3e} lambda {:.2e} edf {:.1}",
+                "   {:>4}: err rms {:.3e} (sigma rms {:.3e}) max {:.3e} truth rms {:.3e} lambda {:.2e} edf {:.1}",
                 f.name(),
                 (e2 / 201.0).sqrt(),
+                (s2 / 201.0).sqrt(),
                 m,
                 (t2 / 201.0).sqrt(),
                 l,
