@@ -427,12 +427,12 @@ struct Supported {
 }
 
 impl Supported {
-    /// `p` on the rows where it has a non-zero entry (exactly zero elsewhere, as products of
-    /// zero rows are).
-    fn of(p: &Mat<f64>) -> Supported {
-        let support: Vec<usize> = (0..p.nrows()).filter(|&i| (0..p.ncols()).any(|j| p[(i, j)] != 0.0)).collect();
-        let m = Mat::from_fn(support.len(), support.len(), |a, b| p[(support[a], support[b])]);
-        Supported { support, m }
+    /// `P = B B^T` on the rows where `B` has a non-zero entry (elsewhere `P` is exactly zero,
+    /// and on them its diagonal `|b_i|^2` is not), formed there alone.
+    fn of_factor(b: &Mat<f64>) -> Supported {
+        let support: Vec<usize> = (0..b.nrows()).filter(|&i| (0..b.ncols()).any(|j| b[(i, j)] != 0.0)).collect();
+        let bs = Mat::from_fn(support.len(), b.ncols(), |a, j| b[(support[a], j)]);
+        Supported { m: &bs * bs.transpose(), support }
     }
 
     /// `target += l * self`.
@@ -495,7 +495,7 @@ impl ReducedPenalty {
             let b = all.subcols(start, widths[g]).to_owned();
             start += widths[g];
             rank.push(rank_of(&b));
-            p.push(Supported::of(&(&b * b.transpose())));
+            p.push(Supported::of_factor(&b));
             bt.push(b);
         }
         // S_g u0 per group, then D^-1 and Z^T (all groups at once).
@@ -1073,7 +1073,7 @@ mod tests {
             h.push(&pg * &u0);
             e0.push((u0.transpose() * &pg * &u0)[(0, 0)]);
             rank.push(5);
-            p.push(Supported::of(&pg));
+            p.push(Supported::of_factor(&b));
             bt.push(b);
         }
         (m_data, g_data, chi2, n_obs, ReducedPenalty { bt, p, h, e0, rank })
