@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use std::time::Instant;
 use volcal::campaign::{prepare, Campaign};
 use volcal::flexibility::{solve_auto, Auto, AutoSolve, AxisKnots};
+use volcal::interpolation::InterpolationCheck;
 use volcal::predict;
 use volcal::{gauge, solve, ErrorModel, Gauge, SolveOptions, Topology, Travel};
 use volcal_formats::machine::Machine;
@@ -126,6 +127,8 @@ pub struct Outcome {
     pub undetermined: usize,
     pub points: usize,
     pub knots: [AxisKnots; 3],
+    /// The interpolation checks of the axes bounded by their positions.
+    pub interpolation: Vec<InterpolationCheck>,
     pub edf: f64,
     /// The noise variance factor REML took (1: the stated noise).
     pub noise_scale: f64,
@@ -166,7 +169,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     let plain = SolveOptions { gauge: g, noise: machine.noise, ..SolveOptions::default() };
 
     let t0 = Instant::now();
-    let AutoSolve { solution: sol, knots } =
+    let AutoSolve { solution: sol, knots, interpolation } =
         solve_auto(&topology, travel, obs, &plain, auto, &[None; 18]).expect("auto solve");
     let auto_s = t0.elapsed().as_secs_f64();
     if std::env::var_os("AUTO_EDF").is_some() {
@@ -304,6 +307,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         undetermined,
         points,
         knots,
+        interpolation,
         edf: sol.smoothing.as_ref().map_or(0.0, |s| s.edf_total),
         noise_scale: sol.smoothing.as_ref().map_or(1.0, |s| s.noise_scale),
         auto_s,

@@ -529,17 +529,87 @@ impl<'a> Fit<'a> {
             .collect()
     }
 
-    /// Solves the Schur complement of the fitted model for an extension with cross products
-    /// `b` (model x extension), `g2` (extension x extension) and gradient `c`.
-    fn schur_score(&self, b: &Mat<f64>, g2: &Mat<f64>, c: &[f64]) -> Score {
-        let n = b.nrows();
-        let k = b.ncols();
-        // Schur complement against the model: S = G - B^T N+ B, with N+ the constrained inverse.
-        let bs = Mat::from_fn(n, k, |i, j| b[(i, j)] / self.scale[i]);
+    /// `B^T N+ B` for columns `b` over the model's parameters (`n x k`), with `N+` the inverse of
+    /// the fitted (penalised) normal matrix on the gauge-constrained subspace.
+    fn constrained_quadratic(&self, b: &Mat<f64>) -> Mat<f64> {
+        let bs = Mat::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] / self.scale[i]);
         let y = self.z.zt(&bs);
         let mut x = y.clone();
         self.factor.llt.solve_in_place(x.as_mut());
-        let q = y.transpose() * &x;
+        y.transpose() * &x
+    }
+
+    /// Deletion statistic of each set of readings (indices into the observations): with `e` the
+    /// set's residuals over their stated sigmas and `H` its block of the fit's (penalised) hat
+    /// matrix, each group's origin included, `t = e^T (I - H)^-1 e`. `(I - H)^-1 e` are the
+    /// residuals of the set predicted by the fit without it (exact for the linearised problem,
+    /// smoothing held), and `(I - H)^-1` their covariance under the stated noise and the
+    /// prior: a fit whose prior describes the data well gives `t` about the set's size (a
+    /// chi-square), one that interpolates worse than its uncertainty says, more. `None` for a
+    /// set whose readings the others do not predict at all (`I - H` singular).
+    pub fn deletion_statistics(&self, sets: &[Vec<usize>]) -> Vec<Option<f64>> {
+        let p = &self.prob;
+        let rows = self.rows.get_or_init(|| ModelRows::new(p, &self.state));
+        let n = p.dims.n();
+        let weight = |i: usize| 1.0 / (p.sigma[i] * p.sigma[i]);
+        // Each group's weighted mean row and weight: its origin is eliminated by centring.
+        let mut group_of = vec![0; p.obs.len()];
+        let mut mean = Mat::<f64>::zeros(n, p.obs.groups.len());
+        let mut wsum = vec![0.0; p.obs.groups.len()];
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            for i in g.range() {
+                group_of[i] = gi;
+                wsum[gi] += weight(i);
+                let (ri, rv) = rows.row(i);
+                let col = mean.col_as_slice_mut(gi);
+                for (&c, &v) in ri.iter().zip(rv) {
+                    col[c] += weight(i) * v;
+                }
+            }
+            let w = wsum[gi];
+            mean.col_as_slice_mut(gi).iter_mut().for_each(|v| *v /= w);
+        }
+        sets.iter()
+            .map(|set| {
+                let k = set.len();
+                // Whitened, centred rows as columns.
+                let mut b = Mat::<f64>::zeros(n, k);
+                for (a, &i) in set.iter().enumerate() {
+                    let sw = weight(i).sqrt();
+                    let col = b.col_as_slice_mut(a);
+                    for (c, m) in col.iter_mut().zip(mean.col_as_slice(group_of[i])) {
+                        *c = -m * sw;
+                    }
+                    let (ri, rv) = rows.row(i);
+                    for (&c, &v) in ri.iter().zip(rv) {
+                        col[c] += v * sw;
+                    }
+                }
+                let q = self.constrained_quadratic(&b);
+                let i_h = Mat::from_fn(k, k, |a, c| {
+                    let (i, j) = (set[a], set[c]);
+                    // The origin's own share of the hat matrix.
+                    let origin = if group_of[i] == group_of[j] {
+                        (weight(i) * weight(j)).sqrt() / wsum[group_of[i]]
+                    } else {
+                        0.0
+                    };
+                    f64::from(a == c) - 0.5 * (q[(a, c)] + q[(c, a)]) - origin
+                });
+                let e = Mat::from_fn(k, 1, |a, _| self.solution.residuals[set[a]] / p.sigma[set[a]]);
+                let llt = i_h.llt(Side::Lower).ok()?;
+                let t = (e.transpose() * llt.solve(&e))[(0, 0)];
+                t.is_finite().then_some(t)
+            })
+            .collect()
+    }
+
+    /// Solves the Schur complement of the fitted model for an extension with cross products
+    /// `b` (model x extension), `g2` (extension x extension) and gradient `c`.
+    fn schur_score(&self, b: &Mat<f64>, g2: &Mat<f64>, c: &[f64]) -> Score {
+        let k = b.ncols();
+        // Schur complement against the model: S = G - B^T N+ B, with N+ the constrained inverse.
+        let q = self.constrained_quadratic(b);
         let schur = Mat::from_fn(k, k, |i, j| 0.5 * ((g2[(i, j)] - q[(i, j)]) + (g2[(j, i)] - q[(j, i)])));
         // Columns that alias completely with the model (their Schur diagonal vanishes relative to
         // their own energy) carry no new information; the rest by a pseudo-inverse.

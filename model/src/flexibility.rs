@@ -22,6 +22,7 @@ use crate::axis::{Axis, Travel};
 use crate::campaign::Observations;
 use crate::estimator::{fit, solve, Effect, ObsContext, Solution, SolveError, SolveOptions};
 use crate::functions::{ErrorFunction, Motion};
+use crate::interpolation::{self, InterpolationCheck};
 use crate::model::ModelLayout;
 use crate::predict::AxisResolution;
 use crate::repr::{Basis, Representation};
@@ -277,6 +278,9 @@ fn auto_layout_within(
 pub struct AutoSolve {
     pub solution: Solution,
     pub knots: [AxisKnots; 3],
+    /// The interpolation checks of the axes the readings resolve only at their positions
+    /// ([`crate::interpolation`]); a contradicted one is also among the solution's warnings.
+    pub interpolation: Vec<InterpolationCheck>,
 }
 
 /// Most rounds of knot refinement (each one fit): two doublings from the start and a retest of
@@ -305,6 +309,9 @@ pub const REFINE_P: f64 = 1e-3;
 /// aliases onto the others. An axis refined up to what its positions determine then goes half
 /// as far again ([`widen_at_bound`]). `opts` carries the gauge, noise and the rest; its
 /// smoothing is replaced.
+///
+/// Axes left bounded by their positions then have their interpolation checked against the
+/// readings ([`check_interpolation`]).
 pub fn solve_auto(
     topology: &Topology,
     travel: Travel,
@@ -313,11 +320,43 @@ pub fn solve_auto(
     auto: &Auto,
     overrides: &[Option<Representation>; 18],
 ) -> Result<AutoSolve, SolveError> {
+    let cx = Context { topology, travel, obs, opts, auto, overrides };
+    let mut out = choose_knots(&cx)?;
+    out.interpolation = check_interpolation(&out, &cx);
+    let said: Vec<String> = out.interpolation.iter().filter(|c| c.contradicted()).map(|c| c.statement()).collect();
+    out.solution.warnings.extend(said);
+    Ok(out)
+}
+
+/// The leave-one-position-out check ([`crate::interpolation::check_axes`]) of every axis of `chosen`
+/// that the readings resolve only at their positions, on a refit of its layout with its
+/// smoothing held (the fit keeps the factorised normal equations the check needs; the
+/// solution is `chosen`'s).
+fn check_interpolation(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<InterpolationCheck> {
+    let bounded: Vec<(Axis, &[f64], f64)> = Axis::ALL
+        .iter()
+        .filter_map(|&a| match &chosen.solution.resolution[a.index()] {
+            AxisResolution::AtPositions { positions, tolerance_m } => Some((a, positions.as_slice(), *tolerance_m)),
+            AxisResolution::Everywhere => None,
+        })
+        .collect();
+    if bounded.is_empty() {
+        return Vec::new();
+    }
+    let layout = layout_with(cx.topology, cx.travel, chosen.knots.clone().map(|k| k.intervals), cx.overrides);
+    let smoothing = chosen.solution.smoothing.as_ref().map(Smoothing::fixed_from);
+    let o = SolveOptions { smoothing: smoothing.or_else(|| cx.opts.smoothing.clone()), ..cx.opts.clone() };
+    let Ok(f) = fit(&layout, cx.obs, &o, &[]) else { return Vec::new() };
+    interpolation::check_axes(&f, cx.obs, &bounded)
+}
+
+/// The knots and the solution on them ([`solve_auto`] without the interpolation checks).
+fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
+    let &Context { topology, travel, obs, opts, auto, overrides } = cx;
     let positions = crate::identify::DataSummary::positions_of(&obs.x);
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
     let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
     let mut smoothing = smoothing_for(overrides);
-    let cx = Context { topology, travel, obs, opts, auto, overrides };
     // The previous round's solution, knots, layout and directions left open: a refinement that
     // neither the readings' geometry nor the prior determines is undone.
     let mut previous: Option<(Solution, [AxisKnots; 3], ModelLayout, usize)> = None;
@@ -334,7 +373,7 @@ pub fn solve_auto(
                         t.determined = false;
                     }
                 }
-                let (sol, kept) = widen_at_bound(sol, kept, &kept_layout, &bound, &cx);
+                let (sol, kept) = widen_at_bound(sol, kept, &kept_layout, &bound, cx);
                 return Ok(finish(sol, kept, &bound, auto, &positions, travel));
             }
         }
@@ -380,7 +419,7 @@ pub fn solve_auto(
             }
         }
         if !refined {
-            let (sol, knots) = widen_at_bound(f.into_solution(), knots, &layout, &bound, &cx);
+            let (sol, knots) = widen_at_bound(f.into_solution(), knots, &layout, &bound, cx);
             return Ok(finish(sol, knots, &bound, auto, &positions, travel));
         }
         if let Some(r) = &f.solution().smoothing {
@@ -465,7 +504,7 @@ fn finish(
             solution.resolution[a] = AxisResolution::at(inside_travel(&travel, k.axis, positions));
         }
     }
-    AutoSolve { solution, knots }
+    AutoSolve { solution, knots, interpolation: Vec::new() }
 }
 
 /// Directions of the functions the readings do not observe at all (beyond each one's gauge

@@ -31,6 +31,7 @@ pub mod functions;
 pub mod gauge;
 mod halves;
 pub mod identify;
+pub mod interpolation;
 pub mod kinematics;
 pub mod misfit;
 pub mod model;

@@ -9,7 +9,7 @@
 //! of every case, for robustness sweeps.
 
 use volcal::flexibility::Auto;
-use volcal_tests::auto_study::{run, suite, summarise};
+use volcal_tests::auto_study::{run, suite, summarise, Outcome};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -30,12 +30,16 @@ fn main() {
         if std::env::var_os("AUTO_SEEDS").is_some() {
             for (s, o) in (first..).zip(&outcomes) {
                 eprintln!(
-                    "  seed {s}: auto {:.3} um, oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}",
+                    "  seed {s}: auto {:.3} um, oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}{}",
                     o.auto_rms_m * 1e6,
                     o.oracle_rms_m * 1e6,
                     o.predicted_rms_m * 1e6,
                     o.max_z,
-                    o.edf
+                    o.edf,
+                    o.interpolation
+                        .iter()
+                        .map(|c| format!(", interpolation {} {:.2} (p {:.1e})", c.axis.letter(), c.ratio(), c.p_value))
+                        .collect::<String>()
                 );
             }
         }
@@ -69,5 +73,18 @@ fn main() {
             outcomes[0].edf
         );
         eprintln!("  actual / predicted at the points the readings resolve: {:.3}", s.mc_ratio_resolved);
+        if outcomes.iter().any(|o| !o.interpolation.is_empty()) {
+            // The campaigns whose interpolation the readings contradict on some axis, and the rest.
+            let (told, quiet): (Vec<Outcome>, Vec<Outcome>) =
+                outcomes.iter().cloned().partition(|o| o.interpolation.iter().any(|c| c.contradicted()));
+            let ratio = |v: &[Outcome]| if v.is_empty() { f64::NAN } else { summarise(v).mc_ratio };
+            eprintln!(
+                "  interpolation contradicted in {} of {} campaigns (actual / predicted there {:.3}, elsewhere {:.3})",
+                told.len(),
+                outcomes.len(),
+                ratio(&told),
+                ratio(&quiet)
+            );
+        }
     }
 }
