@@ -72,48 +72,51 @@ impl InterpolationCheck {
 /// out when fewer than three positions leave nothing inside to leave out, or no reading lies at
 /// an inner one.
 pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)]) -> Vec<InterpolationCheck> {
-    let mut checks: Vec<InterpolationCheck> =
-        axes.iter().filter_map(|&(a, positions, tol)| check(fit, obs, a, positions, tol)).collect();
+    let per_axis: Vec<Vec<Vec<usize>>> =
+        axes.iter().map(|&(a, positions, tol)| left_out_sets(obs, a, positions, tol)).collect();
+    // One pass of the fit's rows for every axis's sets.
+    let all: Vec<Vec<usize>> = per_axis.iter().flatten().cloned().collect();
+    let mut stats = fit.deletion_statistics(&all).into_iter();
+    let scale = fit.solution().stats.variance_factor.max(1.0);
+    let mut checks: Vec<InterpolationCheck> = axes
+        .iter()
+        .zip(&per_axis)
+        .filter_map(|(&(axis, positions, _), sets)| {
+            let (mut chi2, mut readings, mut left_out) = (0.0, 0, 0);
+            for (set, t) in sets.iter().zip(stats.by_ref().take(sets.len())) {
+                if let Some(t) = t {
+                    chi2 += t / scale;
+                    readings += set.len();
+                    left_out += 1;
+                }
+            }
+            (readings > 0).then(|| {
+                let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
+                gaps.sort_by(f64::total_cmp);
+                InterpolationCheck {
+                    axis,
+                    positions: left_out,
+                    readings,
+                    chi2,
+                    p_value: chi2_sf(chi2, readings as f64),
+                    step_m: gaps[gaps.len() / 2],
+                    level: INTERPOLATION_ALPHA,
+                }
+            })
+        })
+        .collect();
     let level = INTERPOLATION_ALPHA / checks.len().max(1) as f64;
     checks.iter_mut().for_each(|c| c.level = level);
     checks
 }
 
-/// One axis of [`check_axes`], judged at [`INTERPOLATION_ALPHA`] alone.
-fn check(
-    fit: &Fit<'_>,
-    obs: &Observations,
-    axis: Axis,
-    positions: &[f64],
-    tolerance_m: f64,
-) -> Option<InterpolationCheck> {
-    let inner = positions.get(1..positions.len().saturating_sub(1))?;
-    let sets: Vec<Vec<usize>> = inner
+/// The readings at each inner position of `axis` (the two ends are not left out: that would
+/// extrapolate), positions without a reading omitted.
+fn left_out_sets(obs: &Observations, axis: Axis, positions: &[f64], tolerance_m: f64) -> Vec<Vec<usize>> {
+    let inner = positions.get(1..positions.len().saturating_sub(1)).unwrap_or(&[]);
+    inner
         .iter()
         .map(|&q| (0..obs.len()).filter(|&i| (axis.coord(&obs.x[i]) - q).abs() <= tolerance_m).collect())
         .filter(|s: &Vec<usize>| !s.is_empty())
-        .collect();
-    let scale = fit.solution().stats.variance_factor.max(1.0);
-    let (mut chi2, mut readings, mut left_out) = (0.0, 0, 0);
-    for (set, t) in sets.iter().zip(fit.deletion_statistics(&sets)) {
-        if let Some(t) = t {
-            chi2 += t / scale;
-            readings += set.len();
-            left_out += 1;
-        }
-    }
-    if readings == 0 {
-        return None;
-    }
-    let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
-    gaps.sort_by(f64::total_cmp);
-    Some(InterpolationCheck {
-        axis,
-        positions: left_out,
-        readings,
-        chi2,
-        p_value: chi2_sf(chi2, readings as f64),
-        step_m: gaps[gaps.len() / 2],
-        level: INTERPOLATION_ALPHA,
-    })
+        .collect()
 }
