@@ -14,6 +14,7 @@ use crate::axis::Axis;
 use crate::campaign::Observations;
 use crate::diagnose::locate::chi2_sf;
 use crate::estimator::Fit;
+use crate::predict::median_spacing;
 
 /// Family-wise significance over a campaign's checked axes below which the interpolation is
 /// reported as contradicted by the readings: one campaign in a hundred whose errors are smooth at
@@ -90,18 +91,14 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
                     left_out += 1;
                 }
             }
-            (readings > 0).then(|| {
-                let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
-                gaps.sort_by(f64::total_cmp);
-                InterpolationCheck {
-                    axis,
-                    positions: left_out,
-                    readings,
-                    chi2,
-                    p_value: chi2_sf(chi2, readings as f64),
-                    step_m: gaps[gaps.len() / 2],
-                    level: INTERPOLATION_ALPHA,
-                }
+            (readings > 0).then(|| InterpolationCheck {
+                axis,
+                positions: left_out,
+                readings,
+                chi2,
+                p_value: chi2_sf(chi2, readings as f64),
+                step_m: median_spacing(positions),
+                level: INTERPOLATION_ALPHA,
             })
         })
         .collect();

@@ -37,9 +37,7 @@ impl AxisResolution {
     /// The resolution of readings at `positions` (sorted, distinct): a coordinate within 1 %
     /// of the median spacing of a position counts as measured.
     pub fn at(positions: Vec<f64>) -> AxisResolution {
-        let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
-        gaps.sort_by(f64::total_cmp);
-        let tolerance_m = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0) * 0.01;
+        let tolerance_m = median_spacing(&positions) * 0.01;
         AxisResolution::AtPositions { positions, tolerance_m }
     }
 
@@ -54,6 +52,13 @@ impl AxisResolution {
             }
         }
     }
+}
+
+/// Median spacing of sorted `positions` (zero for fewer than two).
+pub fn median_spacing(positions: &[f64]) -> f64 {
+    let mut gaps: Vec<f64> = positions.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(f64::total_cmp);
+    gaps.get(gaps.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// The resolution of every axis: everywhere.
