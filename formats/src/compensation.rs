@@ -305,7 +305,7 @@ pub fn require_determined(
     probe: &Vector3<f64>,
     functions: bool,
 ) -> Result<()> {
-    if !unc.has_undetermined() {
+    if unc.determines_everywhere() {
         return Ok(());
     }
     let travel = model.layout.travel;

@@ -331,6 +331,11 @@ pub struct ModelFile {
 pub struct MeasuredPositions {
     pub axis: String,
     pub positions_m: Vec<f64>,
+    /// The readings contradict the interpolation between the positions
+    /// (`volcal::interpolation`): the error between them is not determined. Absent (false) in
+    /// files from before the check.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub interpolation_contradicted: bool,
 }
 
 /// A model read back: the error model, its covariance and what the data left undetermined.
@@ -409,9 +414,11 @@ impl ModelFile {
             measured_positions: Axis::ALL
                 .iter()
                 .filter_map(|&a| match &sol.resolution[a.index()] {
-                    AxisResolution::AtPositions { positions, .. } => {
-                        Some(MeasuredPositions { axis: a.letter().to_string(), positions_m: positions.clone() })
-                    }
+                    AxisResolution::AtPositions { positions, contradicted, .. } => Some(MeasuredPositions {
+                        axis: a.letter().to_string(),
+                        positions_m: positions.clone(),
+                        interpolation_contradicted: *contradicted,
+                    }),
                     AxisResolution::Everywhere => None,
                 })
                 .collect(),
@@ -430,7 +437,8 @@ impl ModelFile {
             if m.positions_m.windows(2).any(|w| !(w[0] < w[1])) || m.positions_m.iter().any(|v| !v.is_finite()) {
                 bail!("field measured_positions[{j}]: positions must be finite and increasing");
             }
-            out[a.index()] = AxisResolution::at(m.positions_m.clone());
+            let r = AxisResolution::at(m.positions_m.clone());
+            out[a.index()] = if m.interpolation_contradicted { r.contradicted() } else { r };
         }
         Ok(out)
     }

@@ -113,34 +113,55 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
     (out, ext)
 }
 
-/// Where the map is interpolated between the measured positions of an axis, in words (empty when
-/// the readings resolve every axis everywhere).
+/// Where the map is interpolated between the measured positions of an axis, and where the
+/// readings contradict that interpolation, in words (empty when the readings resolve every axis
+/// everywhere).
 pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
-    let axes: Vec<String> = Axis::ALL
-        .iter()
-        .filter_map(|&a| match &unc.resolution[a.index()] {
-            predict::AxisResolution::AtPositions { positions, .. } => {
-                let step = if positions.len() > 1 {
-                    (positions[positions.len() - 1] - positions[0]) / (positions.len() - 1) as f64
-                } else {
-                    0.0
-                };
-                Some(format!("{} ({} positions, about {:.0} mm apart)", a.letter(), positions.len(), step * 1e3))
+    let (mut borne, mut contradicted) = (Vec::new(), Vec::new());
+    for a in Axis::ALL {
+        let r = &unc.resolution[a.index()];
+        if let Some(said) = positions_of(a, r) {
+            if r.is_contradicted() {
+                contradicted.push(said)
+            } else {
+                borne.push(said)
             }
-            predict::AxisResolution::Everywhere => None,
-        })
-        .collect();
-    if axes.is_empty() {
-        return String::new();
+        }
     }
-    format!(
-        "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1).\n",
-        axes.join(", ")
-    )
+    let mut out = String::new();
+    if !borne.is_empty() {
+        let _ = writeln!(
+            out,
+            "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1).",
+            borne.join(", ")
+        );
+    }
+    if !contradicted.is_empty() {
+        let _ = writeln!(
+            out,
+            "Between the measured positions along {} the readings contradict the interpolation: the error there is not determined by the data (map column determined = 0), only at the positions.",
+            contradicted.join(", ")
+        );
+    }
+    out
+}
+
+/// "X (11 positions, about 100 mm apart)" for an axis resolved at its positions.
+fn positions_of(a: Axis, r: &predict::AxisResolution) -> Option<String> {
+    match r {
+        predict::AxisResolution::AtPositions { positions, .. } => Some(format!(
+            "{} ({} positions, about {:.0} mm apart)",
+            a.letter(),
+            positions.len(),
+            predict::median_spacing(positions) * 1e3
+        )),
+        predict::AxisResolution::Everywhere => None,
+    }
 }
 
 /// What to measure so that the data determine the volumetric error at probe offset `p`: the
-/// functions the undetermined directions involve there, and where along their axes.
+/// functions the undetermined directions involve there, and the axes along which the readings
+/// contradict the interpolation between their positions.
 pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>) -> String {
     let _ = p;
     let mut involved: Vec<String> = Vec::new();
@@ -160,11 +181,24 @@ pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f6
             involved.push(s.name().to_string());
         }
     }
-    if involved.is_empty() {
+    let mut said: Vec<String> = Vec::new();
+    if !involved.is_empty() {
+        said.push(format!(
+            "the readings leave {} undetermined; measure with other probe offsets or along lines that move those axes where they are missing",
+            involved.join(", ")
+        ));
+    }
+    for a in Axis::ALL {
+        let r = &unc.resolution[a.index()];
+        if let Some(at) = positions_of(a, r).filter(|_| r.is_contradicted()) {
+            said.push(format!(
+                "between the measured positions along {at} the readings contradict the interpolation; measure at more positions along {} (e.g. halve the step)",
+                a.letter()
+            ));
+        }
+    }
+    if said.is_empty() {
         return "measure along more lines".into();
     }
-    format!(
-        "the readings leave {} undetermined; measure with other probe offsets or along lines that move those axes where they are missing",
-        involved.join(", ")
-    )
+    said.join("; ")
 }

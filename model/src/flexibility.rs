@@ -311,7 +311,9 @@ pub const REFINE_P: f64 = 1e-3;
 /// smoothing is replaced.
 ///
 /// Axes left bounded by their positions then have their interpolation checked against the
-/// readings ([`check_interpolation`]).
+/// readings ([`check_interpolation`]). Where the readings contradict it, the solution's
+/// resolution of that axis says so ([`AxisResolution::contradicted`]): predictions between its
+/// positions are then not determined, and a warning says what to measure.
 pub fn solve_auto(
     topology: &Topology,
     travel: Travel,
@@ -323,8 +325,13 @@ pub fn solve_auto(
     let cx = Context { topology, travel, obs, opts, auto, overrides };
     let mut out = choose_knots(&cx)?;
     out.interpolation = check_interpolation(&out, &cx);
-    let said: Vec<String> = out.interpolation.iter().filter(|c| c.contradicted()).map(|c| c.statement()).collect();
-    out.solution.warnings.extend(said);
+    // Between the positions of a contradicted axis the map is not determined by the data: the
+    // interpolation there is what the readings refute, and its uncertainty with it.
+    for c in out.interpolation.iter().filter(|c| c.contradicted()) {
+        let r = &mut out.solution.resolution[c.axis.index()];
+        *r = std::mem::take(r).contradicted();
+        out.solution.warnings.push(c.statement());
+    }
     Ok(out)
 }
 
@@ -336,7 +343,7 @@ fn check_interpolation(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<Interpolatio
     let bounded: Vec<(Axis, &[f64], f64)> = Axis::ALL
         .iter()
         .filter_map(|&a| match &chosen.solution.resolution[a.index()] {
-            AxisResolution::AtPositions { positions, tolerance_m } => Some((a, positions.as_slice(), *tolerance_m)),
+            AxisResolution::AtPositions { positions, tolerance_m, .. } => Some((a, positions.as_slice(), *tolerance_m)),
             AxisResolution::Everywhere => None,
         })
         .collect();

@@ -8,7 +8,8 @@
 //! stops, but not to the neighbouring ones: leaving out every reading at one position, the fit
 //! from the others predicts them worse than its own uncertainty says. This module tests that,
 //! each inner position of the axis left out in turn ([`crate::estimator::Fit::deletion_statistics`]),
-//! and says what to measure when the test fails.
+//! and, when the test fails, the error between the positions is not determined by the data
+//! ([`crate::predict::AxisResolution::contradicted`]) and the statement says what to measure.
 
 use crate::axis::Axis;
 use crate::campaign::Observations;
@@ -57,7 +58,7 @@ impl InterpolationCheck {
     pub fn statement(&self) -> String {
         let a = self.axis.letter();
         format!(
-            "Between the measured positions along {a} the readings do not bear out the interpolation: leaving out each of the {} inner positions in turn, the fit from the others predicts its readings with {:.2} times the variance its uncertainty states (chi2 {:.1} on {}, p {:.1e}). A feature shorter than the step (about {:.0} mm) is likely there, and the map between the positions may miss it by more than its uncertainty: measure at more positions along {a} (e.g. halve the step).",
+            "Between the measured positions along {a} the readings do not bear out the interpolation: leaving out each of the {} inner positions in turn, the fit from the others predicts its readings with {:.2} times the variance its uncertainty states (chi2 {:.1} on {}, p {:.1e}). A feature shorter than the step (about {:.0} mm) is likely there, which the interpolation misses by more than its uncertainty, so the error between the positions along {a} is reported as not determined: measure at more positions along {a} (e.g. halve the step).",
             self.positions,
             self.ratio(),
             self.chi2,

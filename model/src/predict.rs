@@ -30,6 +30,10 @@ pub enum AxisResolution {
         positions: Vec<f64>,
         /// How close to a position a coordinate counts as measured, metres.
         tolerance_m: f64,
+        /// The readings contradict the interpolation between the positions
+        /// ([`crate::interpolation`]): there the functions are not determined by the data,
+        /// only at the positions themselves.
+        contradicted: bool,
     },
 }
 
@@ -38,19 +42,41 @@ impl AxisResolution {
     /// of the median spacing of a position counts as measured.
     pub fn at(positions: Vec<f64>) -> AxisResolution {
         let tolerance_m = median_spacing(&positions) * 0.01;
-        AxisResolution::AtPositions { positions, tolerance_m }
+        AxisResolution::AtPositions { positions, tolerance_m, contradicted: false }
+    }
+
+    /// The same, with the readings contradicting the interpolation between the positions (a
+    /// resolution everywhere has nothing interpolated to contradict and stays as it is).
+    pub fn contradicted(self) -> AxisResolution {
+        match self {
+            AxisResolution::AtPositions { positions, tolerance_m, .. } => {
+                AxisResolution::AtPositions { positions, tolerance_m, contradicted: true }
+            }
+            AxisResolution::Everywhere => AxisResolution::Everywhere,
+        }
     }
 
     /// Whether coordinate `q` lies between measured positions (not at one).
     pub fn interpolates(&self, q: f64) -> bool {
         match self {
             AxisResolution::Everywhere => false,
-            AxisResolution::AtPositions { positions, tolerance_m } => {
+            AxisResolution::AtPositions { positions, tolerance_m, .. } => {
                 let i = positions.partition_point(|&p| p < q);
                 let near = |k: usize| positions.get(k).is_some_and(|&p| (p - q).abs() <= *tolerance_m);
                 !(near(i) || (i > 0 && near(i - 1)))
             }
         }
+    }
+
+    /// Whether the readings contradict the interpolation between the positions.
+    pub fn is_contradicted(&self) -> bool {
+        matches!(self, AxisResolution::AtPositions { contradicted: true, .. })
+    }
+
+    /// Whether the data leave the functions open at coordinate `q`: between the positions of
+    /// an axis whose readings contradict the interpolation there.
+    pub fn leaves_open(&self, q: f64) -> bool {
+        self.is_contradicted() && self.interpolates(q)
     }
 }
 
@@ -108,6 +134,20 @@ impl<'a> Uncertainty<'a> {
         self.undetermined.ncols() > 0
     }
 
+    /// Whether the data determine every prediction: no direction undetermined, and no axis
+    /// whose readings contradict the interpolation between its positions. When true, a
+    /// prediction need not be asked.
+    pub fn determines_everywhere(&self) -> bool {
+        !self.has_undetermined() && !self.resolution.iter().any(AxisResolution::is_contradicted)
+    }
+
+    /// Whether the data leave the error at `x` open along some axis: `x` lies between the
+    /// positions of an axis whose readings contradict the interpolation there
+    /// ([`AxisResolution::leaves_open`]).
+    pub fn leaves_open_at(&self, x: &Point3<f64>) -> bool {
+        Axis::ALL.iter().any(|&a| self.resolution[a.index()].leaves_open(a.coord(x)))
+    }
+
     /// How much the linear functional with sparse rows `(index, value)` (one row per output
     /// component) depends on the undetermined directions: `||G U||_F / ||G||_F`, 0 to 1.
     pub fn share<'r>(&self, rows: impl Iterator<Item = &'r [(usize, f64)]>) -> f64 {
@@ -146,13 +186,17 @@ pub struct PointError {
     /// there ([`AxisResolution::AtPositions`]): `e` and its uncertainty are interpolated, under
     /// the smoothness the readings showed elsewhere.
     pub interpolated: bool,
+    /// The point lies between the measured positions of an axis whose readings contradict the
+    /// interpolation ([`AxisResolution::leaves_open`]): the data do not determine `e` here.
+    pub between_contradicted: bool,
 }
 
 impl PointError {
-    /// Whether the data determine `e` here. When not, `e` is the minimum-norm value, which
-    /// means nothing, and the uncertainties are infinite.
+    /// Whether the data determine `e` here. When not, `e` is the minimum-norm value or an
+    /// interpolation the readings contradict, which means nothing, and the uncertainties are
+    /// infinite.
     pub fn is_determined(&self) -> bool {
-        self.undetermined <= NOT_DETERMINED_ABOVE
+        self.undetermined <= NOT_DETERMINED_ABOVE && !self.between_contradicted
     }
 
     /// Expanded uncertainty (k = 2) of the error vector along its least favourable direction:
@@ -211,7 +255,15 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
         0.0
     };
     let interpolated = Axis::ALL.iter().any(|&a| unc.resolution[a.index()].interpolates(a.coord(x)));
-    PointError { x: *x, p: *p, e: s.apply(&model.u), cov: propagate(&s, unc.covariance), undetermined, interpolated }
+    PointError {
+        x: *x,
+        p: *p,
+        e: s.apply(&model.u),
+        cov: propagate(&s, unc.covariance),
+        undetermined,
+        interpolated,
+        between_contradicted: unc.leaves_open_at(x),
+    }
 }
 
 /// Regular grid over the travel with spacing `step` (at least 2 points per axis, ends
@@ -253,7 +305,7 @@ pub fn max_error(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>, st
     let mut best = Point3::origin();
     let mut best_m = -1.0;
     let pts = grid(&travel, step);
-    let determined = |x: &Point3<f64>| !unc.has_undetermined() || predict(model, unc, x, p).is_determined();
+    let determined = |x: &Point3<f64>| unc.determines_everywhere() || predict(model, unc, x, p).is_determined();
     let mask: Vec<bool> = pts.iter().map(determined).collect();
     let undetermined_points = mask.iter().filter(|d| !**d).count();
     let any = undetermined_points < pts.len();
@@ -322,8 +374,12 @@ pub fn compensation_table(model: &ErrorModel, unc: &Uncertainty<'_>, a: Axis, n:
 }
 
 /// Standard uncertainty of one function's value at `q`; infinite where the data do not
-/// determine it.
+/// determine it (it depends on an undetermined direction, or `q` lies between the positions of
+/// an axis whose readings contradict the interpolation).
 pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunction, q: f64) -> f64 {
+    if unc.resolution[f.axis.index()].leaves_open(q) {
+        return f64::INFINITY;
+    }
     let off = model.layout.range(f).start;
     let b = model.layout.basis(f).eval(q);
     let row: Vec<(usize, f64)> = b.iter().map(|&(i, v)| (off + i, v)).collect();

@@ -108,7 +108,8 @@ pub struct PositioningPoint {
 /// Predicts the positioning deviations of `line` at the `targets` (distances from the start)
 /// for probe offset `p`: exact kinematic chain for the value, small-angle sensitivity for the
 /// uncertainty (`g^T C g` with `g = n^T (G(X_s) - G(A))`), infinite where `g` depends on the
-/// directions the data leave undetermined.
+/// directions the data leave undetermined or either point lies where the readings contradict
+/// the interpolation between measured positions.
 pub fn predict_positioning(
     model: &ErrorModel,
     unc: &crate::predict::Uncertainty<'_>,
@@ -130,7 +131,9 @@ pub fn predict_positioning(
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
             let var = if with_cov { quadratic_form(cov, &g) } else { 0.0 };
-            let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE;
+            let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
+                && !unc.leaves_open_at(&x)
+                && !unc.leaves_open_at(&line.start);
             PositioningPoint {
                 s_m: s,
                 x,

@@ -204,6 +204,43 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
         solved.file.warnings.iter().filter(|w| w.contains("do not bear out the interpolation")).collect();
     assert!(!said.is_empty(), "seed {seed}: {:?}", solved.file.warnings);
     assert!(said.iter().all(|w| w.contains("measure at more positions along")), "{said:?}");
+
+    // Read back as `volcal map` and `volcal export` read it: between the positions of a
+    // contradicted axis the error is not determined, at the positions it is.
+    let path = std::env::temp_dir().join(format!("volcal-interpolation-{}.json", std::process::id()));
+    solved.file.write(&path).unwrap();
+    let back = volcal_formats::model_file::load(&path);
+    std::fs::remove_file(&path).ok();
+    let back = back.unwrap();
+    let unc = back.uncertainty();
+    let contradicted: Vec<volcal::Axis> =
+        volcal::Axis::ALL.into_iter().filter(|a| back.resolution[a.index()].is_contradicted()).collect();
+    assert_eq!(contradicted.len(), said.len(), "one contradicted axis per warning: {:?}", back.resolution);
+    let stops = |a: volcal::Axis| match &back.resolution[a.index()] {
+        predict::AxisResolution::AtPositions { positions, .. } => positions.clone(),
+        predict::AxisResolution::Everywhere => panic!("{a:?} is bounded by the stops"),
+    };
+    let mut at_stops = nalgebra::Point3::origin();
+    for a in volcal::Axis::ALL {
+        at_stops[a.index()] = stops(a)[stops(a).len() / 2];
+    }
+    let p = Vector3::zeros();
+    let there = predict::predict(&back.model, &unc, &at_stops, &p);
+    assert!(there.is_determined() && there.u95().is_finite(), "at the stops: {there:?}");
+    for &a in &contradicted {
+        let q = stops(a);
+        let mut between = at_stops;
+        between[a.index()] = 0.5 * (q[q.len() / 2] + q[q.len() / 2 + 1]);
+        let pe = predict::predict(&back.model, &unc, &between, &p);
+        assert!(!pe.is_determined() && pe.between_contradicted && pe.u95().is_infinite(), "between: {pe:?}");
+        let f = volcal::ErrorFunction::from_index(a.index() * 6);
+        assert!(predict::function_sigma(&back.model, &unc, f, between[a.index()]).is_infinite());
+        assert!(predict::function_sigma(&back.model, &unc, f, at_stops[a.index()]).is_finite());
+        let what = volcal_formats::report::what_to_measure(&back.model, &unc, &p);
+        assert!(what.contains(&format!("measure at more positions along {}", a.letter())), "{what}");
+    }
+    let refused = volcal_formats::compensation::require_determined(&back.model, &unc, &at_stops, &p, true);
+    assert!(refused.is_err_and(|e| e.to_string().contains("measure at more positions along")));
 }
 
 /// The dense tracer's 21 stops per edge determine 18 intervals: an axis whose refinement

@@ -49,7 +49,7 @@ pub fn log_volumetric_map(
     // Arrows where the data determine the error; grey points where they do not.
     let (grid, open): (Vec<Point3<f64>>, Vec<Point3<f64>>) = all
         .into_iter()
-        .partition(|x| !unc.has_undetermined() || predict::predict(model, unc, x, probe).is_determined());
+        .partition(|x| unc.determines_everywhere() || predict::predict(model, unc, x, probe).is_determined());
     if !open.is_empty() {
         rec.log_static(
             paths::MAP_UNDETERMINED,
