@@ -334,7 +334,11 @@ pub fn require_determined(
     bail!(
         "the data do not determine {} of the model, which the tables need: {}",
         missing.join(", "),
-        crate::report::what_to_measure(model, unc, probe)
+        if functions {
+            crate::report::what_to_measure_functions(model, unc)
+        } else {
+            crate::report::what_to_measure(model, unc, probe)
+        }
     )
 }
 

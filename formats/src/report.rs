@@ -160,33 +160,41 @@ fn positions_of(a: Axis, r: &predict::AxisResolution) -> Option<String> {
 }
 
 /// What to measure so that the data determine the volumetric error at probe offset `p`: the
-/// functions the undetermined directions involve there, and the axes along which the readings
-/// contradict the interpolation between their positions.
+/// functions the undetermined directions involve, when the error at `p` depends on them, and the
+/// axes along which the readings contradict the interpolation between their positions.
 pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>) -> String {
-    let _ = p;
-    let mut involved: Vec<String> = Vec::new();
-    for f in ErrorFunction::all() {
-        let r = model.layout.range(f);
-        let w: f64 = (0..unc.undetermined.ncols())
-            .map(|j| r.clone().map(|i| unc.undetermined[(i, j)].powi(2)).sum::<f64>())
-            .sum();
-        if w > 1e-3 {
-            involved.push(f.name());
-        }
-    }
-    for s in Squareness::ALL {
-        let i = model.layout.squareness_index(s);
-        let w: f64 = (0..unc.undetermined.ncols()).map(|j| unc.undetermined[(i, j)].powi(2)).sum();
-        if w > 1e-3 {
-            involved.push(s.name().to_string());
-        }
-    }
-    let mut said: Vec<String> = Vec::new();
-    if !involved.is_empty() {
-        said.push(format!(
+    // Whether the error at `p` sees the undetermined directions (a tracer's single offset does
+    // not see the rolls its lever arm is zero for), on a coarse grid: 5 points along the longest
+    // axis.
+    let travel = model.layout.travel;
+    let step = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max) / 4.0;
+    let sees = unc.has_undetermined()
+        && predict::grid(&travel, step)
+            .iter()
+            .any(|x| predict::predict(model, unc, x, p).undetermined > predict::NOT_DETERMINED_ABOVE);
+    what_to_measure_with(model, unc, sees)
+}
+
+/// What to measure so that the data determine every error function over its travel (the
+/// tables of an ISG or SINUMERIK export): the functions the undetermined directions involve, and
+/// the axes along which the readings contradict the interpolation.
+pub fn what_to_measure_functions(model: &ErrorModel, unc: &Uncertainty<'_>) -> String {
+    what_to_measure_with(model, unc, true)
+}
+
+/// The statements of [`what_to_measure`], the undetermined functions among them when
+/// `functions` (or when nothing else explains what is missing).
+fn what_to_measure_with(model: &ErrorModel, unc: &Uncertainty<'_>, functions: bool) -> String {
+    let involved = undetermined_functions(model, unc);
+    let functions_said = (!involved.is_empty()).then(|| {
+        format!(
             "the readings leave {} undetermined; measure with other probe offsets or along lines that move those axes where they are missing",
             involved.join(", ")
-        ));
+        )
+    });
+    let mut said: Vec<String> = Vec::new();
+    if functions {
+        said.extend(functions_said.clone());
     }
     for a in Axis::ALL {
         let r = &unc.resolution[a.index()];
@@ -198,7 +206,27 @@ pub fn what_to_measure(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f6
         }
     }
     if said.is_empty() {
+        said.extend(functions_said);
+    }
+    if said.is_empty() {
         return "measure along more lines".into();
     }
     said.join("; ")
+}
+
+/// The functions and squareness errors the undetermined directions involve.
+fn undetermined_functions(model: &ErrorModel, unc: &Uncertainty<'_>) -> Vec<String> {
+    let weight = |i: usize| -> f64 { (0..unc.undetermined.ncols()).map(|j| unc.undetermined[(i, j)].powi(2)).sum() };
+    let mut involved: Vec<String> = ErrorFunction::all()
+        .into_iter()
+        .filter(|&f| model.layout.range(f).map(weight).sum::<f64>() > 1e-3)
+        .map(|f| f.name())
+        .collect();
+    involved.extend(
+        Squareness::ALL
+            .iter()
+            .filter(|&&s| weight(model.layout.squareness_index(s)) > 1e-3)
+            .map(|s| s.name().to_string()),
+    );
+    involved
 }

@@ -23,8 +23,8 @@ pub fn display_unit(motion: Motion) -> &'static str {
     }
 }
 
-/// Logs every function of `model` with its band from `unc` (the coefficient covariance); a
-/// function the data do not determine is drawn without a band and named so.
+/// Logs every function of `model` with its band from `unc` (the coefficient covariance); where
+/// the data do not determine a function it is drawn without a band, and named so.
 pub fn log_error_functions(rec: &RecordingStream, model: &ErrorModel, unc: &Uncertainty<'_>) -> anyhow::Result<()> {
     let cov = unc.covariance;
     for f in ErrorFunction::all() {
@@ -32,9 +32,16 @@ pub fn log_error_functions(rec: &RecordingStream, model: &ErrorModel, unc: &Unce
         let q: Vec<f64> = (0..SAMPLES).map(|i| lo + (hi - lo) * i as f64 / (SAMPLES - 1) as f64).collect();
         let v: Vec<f64> = q.iter().map(|&q| model.function_value(f, q)).collect();
         let u: Vec<f64> = q.iter().map(|&q| COVERAGE_K * predict::function_sigma(model, unc, f, q)).collect();
-        let open = u.iter().any(|u| !u.is_finite());
-        let u: Vec<f64> = u.into_iter().map(|u| if u.is_finite() { u } else { 0.0 }).collect();
-        let name = format!("{} ({}){}", f.name(), f.describe(), if open { ", not determined by the data" } else { "" });
+        // Where the data do not determine the function the band is NaN: the viewer draws none
+        // there (a band of zero width would read as a value known exactly).
+        let open = u.iter().filter(|u| !u.is_finite()).count();
+        let said = match open {
+            0 => "",
+            n if n == u.len() => ", not determined by the data",
+            _ => ", not determined by the data where it has no band",
+        };
+        let u: Vec<f64> = u.into_iter().map(|u| if u.is_finite() { u } else { f64::NAN }).collect();
+        let name = format!("{} ({}){said}", f.name(), f.describe());
         let color = colors::component(f.component.index());
         log_with_band(rec, &paths::function(f), &name, color, &q, &v, &u)?;
     }

@@ -95,5 +95,13 @@ pub fn summary_markdown(obs: &Observations, solution: &Solution, map: &volumetri
     );
     let timelines = "**Timelines**: `position_mm` (abscissa along each line; axis position of the functions), \
          `campaign_time` (residuals over time), `beam_index` (spread of each line).";
-    format!("{fit}\n\n{largest}\n\n{scene}\n\n{timelines}")
+    let open = if m.undetermined_points > 0 {
+        format!(
+            "\n\n**Not determined** by the data at {} of {} grid points (grey points, no arrow; functions without a band there): the report says what to measure.",
+            m.undetermined_points, m.grid_points
+        )
+    } else {
+        String::new()
+    };
+    format!("{fit}\n\n{largest}{open}\n\n{scene}\n\n{timelines}")
 }
