@@ -1,6 +1,6 @@
 """Independent check of volcal's Rerun recordings, with the official Rerun SDK.
 
-usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]...
+usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]... [--band-open PATH]...
                                              a recording of `volcal solve --rerun`
        check_rrd.py --live LIVE.rrd BAG [--entity PATH]...
                                              a recording of the viz node watching the campaign
@@ -8,7 +8,9 @@ usage: check_rrd.py SOLVE.rrd CAMPAIGN.csv [--series ROOT]... [--entity PATH]...
 
 `--series ROOT`: one more per-reading series per line is expected under ROOT (e.g. the
 residuals before and after a diagnosis, an effect's signature); `--entity PATH`: one more
-entity path is expected (e.g. the diagnosis report).
+entity path is expected (e.g. the diagnosis report); `--band-open PATH`: the error function at
+PATH is drawn everywhere but has no band (NaN) where the model does not determine it and a finite
+band elsewhere (a function determined only at its measured positions).
 
 Reads the campaign itself, without volcal (the CSV with the standard csv module; the bag's
 /campaign/pairs with rosbags), to know which stations, lines and readings there are, then
@@ -68,6 +70,18 @@ class Recording:
             if chunk.is_static:
                 self.static_at.add(path)
         self.paths = set(self.rows_at)
+        self.rrd = rrd
+
+    def function_samples(self, path):
+        """(value, value + U, value - U) of each sample of an error function at `path`."""
+        out = []
+        for chunk in RrdReader(self.rrd).stream().to_chunks():
+            if chunk.entity_path.strip("/") != path or chunk.is_static:
+                continue
+            batch = chunk.to_record_batch()
+            column = batch.column(batch.schema.get_field_index("Scalars:scalars"))
+            out.extend(tuple(row) for row in column.to_pylist())
+        return out
 
     def problems(self):
         out = []
@@ -114,6 +128,20 @@ def check_solve(rec, readings, series_roots=("fit/residuals",), extra_entities=(
     return expected, problems
 
 
+def check_band_open(rec, path, problems):
+    """The function at `path` has a value at every sample, and a band at some but not all."""
+    samples = rec.function_samples(path)
+    nan = lambda v: v != v
+    if not samples or any(len(s) != 3 or nan(s[0]) for s in samples):
+        problems.append(f"{path}: expected (value, upper, lower) with a value at every sample")
+        return
+    open_ = sum(1 for s in samples if nan(s[1]) and nan(s[2]))
+    banded = sum(1 for s in samples if not nan(s[1]) and not nan(s[2]) and s[1] >= s[0] >= s[2])
+    print(f"{path}: {len(samples)} samples, {open_} without a band, {banded} with one")
+    if open_ == 0 or banded == 0 or open_ + banded != len(samples):
+        problems.append(f"{path}: {open_} samples without a band and {banded} with one of {len(samples)}")
+
+
 def check_live(rec, readings):
     problems = []
     expected = {
@@ -149,13 +177,13 @@ def main(argv):
     if len(argv) < 2 or len(argv) % 2 != 0:
         sys.exit(__doc__)
     rrd, campaign = argv[:2]
-    series_roots, extra_entities = ["fit/residuals"], set()
+    series_roots, extra_entities, band_open = ["fit/residuals"], set(), []
     rest = argv[2:]
     while rest:
         flag, value, rest = rest[0], rest[1], rest[2:]
-        if flag not in ("--series", "--entity") or (live and flag == "--series"):
+        if flag not in ("--series", "--entity", "--band-open") or (live and flag != "--entity"):
             sys.exit(__doc__)
-        {"--series": series_roots.append, "--entity": extra_entities.add}[flag](value)
+        {"--series": series_roots.append, "--entity": extra_entities.add, "--band-open": band_open.append}[flag](value)
     readings = bag_lines(campaign) if live else campaign_lines(campaign)
     if not readings:
         sys.exit(f"FAIL: no readings in {campaign}")
@@ -166,6 +194,8 @@ def main(argv):
     else:
         expected, problems = check_solve(rec, readings, series_roots, extra_entities)
     problems = rec.problems() + problems
+    for path in band_open:
+        check_band_open(rec, path, problems)
     missing = sorted(expected - rec.paths)
     if missing:
         problems.append(f"{len(missing)} expected entity paths missing, e.g. {missing[:8]}")

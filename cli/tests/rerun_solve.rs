@@ -60,6 +60,72 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
     check_entities(&py, &rrd, &dir);
 }
 
+/// A laser-tracer campaign (11 stops per edge) over a machine whose guideways carry a bump
+/// shorter than the step, solved with the two-line machine file: the readings contradict the
+/// interpolation between the stops of some axis (issue 12). What the user gets through the
+/// commands: the solve says so and what to measure, the map has no number between those stops,
+/// the export refuses, and the recording draws that axis's functions without a band between the
+/// stops (read back by rerun-sdk).
+#[test]
+fn a_contradicted_interpolation_is_not_drawn_as_known() {
+    use volcal_tests::auto_study::{campaign, suite, Density, Measure};
+    use volcal_tests::truth_families::Family;
+    let dir = volcal_tests::scratch("rerun-contradicted");
+    let case = suite()
+        .into_iter()
+        .find(|c| {
+            c.family == Family::PiecewiseBump
+                && c.topology == "FXYZ"
+                && c.measure == Measure::Tracer
+                && c.density == Density::Sparse
+        })
+        .unwrap();
+    // Seed 3001: the first of `representation_auto`'s held-out seeds that is warned.
+    let (c, _) = campaign(&case, 3001);
+    volcal_formats::campaign_csv::write(&dir.join("campaign.csv"), &c).unwrap();
+    std::fs::write(
+        dir.join("machine.yaml"),
+        "topology: FXYZ\ntravel: {x: [0.0, 1.0], y: [0.0, 0.8], z: [-0.6, 0.0]}\n",
+    )
+    .unwrap();
+    let solve = ["solve", "campaign.csv", "--machine", "machine.yaml", "--out", "model.json", "--rerun", "solve.rrd"];
+    let out = volcal(&dir, &solve);
+    let said = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(said.contains("the readings contradict the interpolation"), "{said}");
+
+    let loaded = volcal_formats::model_file::load(&dir.join("model.json")).unwrap();
+    let axes: Vec<volcal::Axis> =
+        volcal::Axis::ALL.into_iter().filter(|a| loaded.resolution[a.index()].is_contradicted()).collect();
+    assert!(!axes.is_empty(), "no axis contradicted in the model file: {:?}", loaded.resolution);
+
+    let out = volcal(&dir, &["map", "model.json", "--step", "0.05", "--out", "map.csv"]);
+    let warned = String::from_utf8_lossy(&out.stderr);
+    for a in &axes {
+        assert!(warned.contains(&format!("measure at more positions along {}", a.letter())), "{warned}");
+    }
+    let map = std::fs::read_to_string(dir.join("map.csv")).unwrap();
+    let determined: Vec<&str> = map.lines().skip(1).map(|l| l.split(',').nth(11).unwrap()).collect();
+    let open = determined.iter().filter(|d| **d == "0").count();
+    assert!(open > 0 && open < determined.len(), "{open} of {} grid points not determined", determined.len());
+
+    let refused = Command::new(env!("CARGO_BIN_EXE_volcal"))
+        .current_dir(&dir)
+        .args(["export", "model.json", "--format", "linuxcnc", "--out", "comp"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && text.contains("measure at more positions along"), "{text}");
+
+    let Some(py) = volcal_tests::checker_python() else { return };
+    rrd_verify(&py, &dir.join("solve.rrd"));
+    let mut extra = Vec::new();
+    for a in &axes {
+        extra.push("--band-open".to_string());
+        extra.push(format!("functions/{0}/translation/EX{0}", a.letter()));
+    }
+    check_entities_of(&py, &dir.join("solve.rrd"), &dir.join("campaign.csv"), &extra);
+}
+
 /// `rerun rrd verify` of the venv's Rerun CLI (the crate's version) accepts `rrd`.
 fn rrd_verify(py: &Path, rrd: &Path) {
     common::rrd::verify(py, rrd);
