@@ -101,6 +101,17 @@ pub fn suite() -> Vec<Case> {
     out
 }
 
+/// The suite's case of `family` on `topology` measured by `measure` at `density`.
+///
+/// # Panics
+/// When the suite has no such case (e.g. the paper's tables on FXYZ).
+pub fn case(family: Family, topology: &str, measure: Measure, density: Density) -> Case {
+    suite()
+        .into_iter()
+        .find(|c| c.family == family && c.topology == topology && c.measure == measure && c.density == density)
+        .unwrap_or_else(|| panic!("no case {family:?} | {topology} | {measure:?} | {density:?} in the suite"))
+}
+
 /// What one campaign gave.
 #[derive(Clone, Debug)]
 pub struct Outcome {

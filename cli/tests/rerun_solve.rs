@@ -68,18 +68,10 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
 /// stops (read back by rerun-sdk).
 #[test]
 fn a_contradicted_interpolation_is_not_drawn_as_known() {
-    use volcal_tests::auto_study::{campaign, suite, Density, Measure};
+    use volcal_tests::auto_study::{campaign, case, Density, Measure};
     use volcal_tests::truth_families::Family;
     let dir = volcal_tests::scratch("rerun-contradicted");
-    let case = suite()
-        .into_iter()
-        .find(|c| {
-            c.family == Family::PiecewiseBump
-                && c.topology == "FXYZ"
-                && c.measure == Measure::Tracer
-                && c.density == Density::Sparse
-        })
-        .unwrap();
+    let case = case(Family::PiecewiseBump, "FXYZ", Measure::Tracer, Density::Sparse);
     // Seed 3001: the first of `representation_auto`'s held-out seeds that is warned.
     let (c, _) = campaign(&case, 3001);
     volcal_formats::campaign_csv::write(&dir.join("campaign.csv"), &c).unwrap();

@@ -82,12 +82,7 @@ fn fxyz_over_a_bump(
     measure: volcal_tests::auto_study::Measure,
     density: volcal_tests::auto_study::Density,
 ) -> volcal_tests::auto_study::Case {
-    suite()
-        .into_iter()
-        .find(|c| {
-            c.family == Family::PiecewiseBump && c.topology == "FXYZ" && c.measure == measure && c.density == density
-        })
-        .unwrap()
+    volcal_tests::auto_study::case(Family::PiecewiseBump, "FXYZ", measure, density)
 }
 
 /// `auto_study`'s case of sparse FXYZ beams over a piecewise truth with a local bump.
@@ -165,15 +160,7 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
     use volcal_tests::auto_study::{Density, Measure};
     let auto = Auto::default();
     let bump = fxyz_over_a_bump(Measure::Tracer, Density::Sparse);
-    let smooth = suite()
-        .into_iter()
-        .find(|c| {
-            c.family == Family::PolySine
-                && c.topology == "FXYZ"
-                && c.measure == Measure::Tracer
-                && c.density == Density::Sparse
-        })
-        .unwrap();
+    let smooth = volcal_tests::auto_study::case(Family::PolySine, "FXYZ", Measure::Tracer, Density::Sparse);
     let (mut told, mut ratios) = (Vec::new(), Vec::new());
     for seed in SEEDS.start..SEEDS.start + 6 {
         let o = run(&bump, seed, &auto);
