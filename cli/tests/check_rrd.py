@@ -56,32 +56,26 @@ def bag_lines(bag):
 class Recording:
     """Rows, timelines and static-ness per entity path of one .rrd file."""
 
-    def __init__(self, rrd):
+    def __init__(self, rrd, sampled=()):
+        """`sampled`: entity paths whose scalar samples are kept (`samples_at`)."""
         reader = RrdReader(rrd)
         self.recordings = reader.recordings()
         self.blueprints = reader.blueprints()
         self.rows_at = Counter()
         self.timelines_at = {}
         self.static_at = set()
+        self.samples_at = {path: [] for path in sampled}
         for chunk in reader.stream().to_chunks():
             path = chunk.entity_path.strip("/")
             self.rows_at[path] += chunk.num_rows
             self.timelines_at.setdefault(path, set()).update(chunk.timeline_names)
             if chunk.is_static:
                 self.static_at.add(path)
+            elif path in self.samples_at:
+                batch = chunk.to_record_batch()
+                column = batch.column(batch.schema.get_field_index("Scalars:scalars"))
+                self.samples_at[path].extend(tuple(row) for row in column.to_pylist())
         self.paths = set(self.rows_at)
-        self.rrd = rrd
-
-    def function_samples(self, path):
-        """(value, value + U, value - U) of each sample of an error function at `path`."""
-        out = []
-        for chunk in RrdReader(self.rrd).stream().to_chunks():
-            if chunk.entity_path.strip("/") != path or chunk.is_static:
-                continue
-            batch = chunk.to_record_batch()
-            column = batch.column(batch.schema.get_field_index("Scalars:scalars"))
-            out.extend(tuple(row) for row in column.to_pylist())
-        return out
 
     def problems(self):
         out = []
@@ -129,8 +123,9 @@ def check_solve(rec, readings, series_roots=("fit/residuals",), extra_entities=(
 
 
 def check_band_open(rec, path, problems):
-    """The function at `path` has a value at every sample, and a band at some but not all."""
-    samples = rec.function_samples(path)
+    """The function at `path` (value, value + U, value - U per sample) has a value at every
+    sample, and a band at some but not all."""
+    samples = rec.samples_at[path]
     nan = lambda v: v != v
     if not samples or any(len(s) != 3 or nan(s[0]) for s in samples):
         problems.append(f"{path}: expected (value, upper, lower) with a value at every sample")
@@ -187,7 +182,7 @@ def main(argv):
     readings = bag_lines(campaign) if live else campaign_lines(campaign)
     if not readings:
         sys.exit(f"FAIL: no readings in {campaign}")
-    rec = Recording(rrd)
+    rec = Recording(rrd, band_open)
     if live:
         expected, problems = check_live(rec, readings)
         expected |= extra_entities

@@ -198,7 +198,7 @@ fn what_to_measure_with(model: &ErrorModel, unc: &Uncertainty<'_>, functions: bo
     }
     for a in Axis::ALL {
         let r = &unc.resolution[a.index()];
-        if let Some(at) = positions_of(a, r).filter(|_| r.is_contradicted()) {
+        if let Some(at) = r.is_contradicted().then(|| positions_of(a, r)).flatten() {
             said.push(format!(
                 "between the measured positions along {at} the readings contradict the interpolation; measure at more positions along {} (e.g. halve the step)",
                 a.letter()

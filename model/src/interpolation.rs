@@ -122,14 +122,11 @@ fn holm(checks: &mut [InterpolationCheck]) {
     let m = checks.len();
     let mut order: Vec<usize> = (0..m).collect();
     order.sort_by(|&i, &j| checks[i].p_value.total_cmp(&checks[j].p_value));
-    let mut level = INTERPOLATION_ALPHA / m.max(1) as f64;
-    let mut stepping = true;
+    let at = |k: usize| INTERPOLATION_ALPHA / (m - k) as f64;
+    // The first step whose axis is borne out; the axes after it are judged at its level.
+    let stop = order.iter().enumerate().position(|(k, &i)| checks[i].p_value >= at(k)).unwrap_or(m);
     for (k, &i) in order.iter().enumerate() {
-        if stepping {
-            level = INTERPOLATION_ALPHA / (m - k) as f64;
-            stepping = checks[i].p_value < level;
-        }
-        checks[i].level = level;
+        checks[i].level = at(k.min(stop));
     }
 }
 

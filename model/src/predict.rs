@@ -254,7 +254,15 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
     } else {
         0.0
     };
-    let interpolated = Axis::ALL.iter().any(|&a| unc.resolution[a.index()].interpolates(a.coord(x)));
+    // Interpolated along some axis, and whether along a contradicted one: one pass over the axes.
+    let (mut interpolated, mut between_contradicted) = (false, false);
+    for a in Axis::ALL {
+        let r = &unc.resolution[a.index()];
+        if r.interpolates(a.coord(x)) {
+            interpolated = true;
+            between_contradicted |= r.is_contradicted();
+        }
+    }
     PointError {
         x: *x,
         p: *p,
@@ -262,7 +270,7 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
         cov: propagate(&s, unc.covariance),
         undetermined,
         interpolated,
-        between_contradicted: unc.leaves_open_at(x),
+        between_contradicted,
     }
 }
 

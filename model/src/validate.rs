@@ -123,6 +123,7 @@ pub fn predict_positioning(
     let n_params = model.layout.n_params;
     let cov = unc.covariance;
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
+    let start_open = unc.leaves_open_at(&line.start);
     targets
         .iter()
         .map(|&s| {
@@ -132,8 +133,8 @@ pub fn predict_positioning(
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
             let var = if with_cov { quadratic_form(cov, &g) } else { 0.0 };
             let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
-                && !unc.leaves_open_at(&x)
-                && !unc.leaves_open_at(&line.start);
+                && !start_open
+                && !unc.leaves_open_at(&x);
             PositioningPoint {
                 s_m: s,
                 x,
