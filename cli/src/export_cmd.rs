@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use std::path::Path;
 use volcal::Axis;
-use volcal_formats::compensation::{self, CompFileType, Residual};
+use volcal_formats::compensation::{self, CompFileType, Nodes, Residual};
 use volcal_formats::model_file;
 use volcal_formats::{isg, sinumerik};
 
@@ -23,12 +23,26 @@ pub enum Format {
     Sinumerik,
 }
 
+/// Where the nodes of the tables lie.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum NodePlacement {
+    /// Evenly spaced, --step-mm apart, on every axis.
+    #[default]
+    Even,
+    /// At the measured positions (a tracer's stops) on each axis whose readings contradict
+    /// the interpolation between them, evenly spaced on the others: the only tables the data
+    /// determine there ([`Nodes::at_measured`]).
+    Measured,
+}
+
 /// Options of `volcal export`.
 #[derive(Clone, Debug)]
 pub struct ExportOptions {
     pub format: Format,
     /// Node spacing, metres (LinuxCNC and ISG default 10 mm; SINUMERIK 20 mm; grid 50 mm).
     pub step_m: Option<f64>,
+    /// Where the nodes lie along the axes with measured positions.
+    pub nodes: NodePlacement,
     /// Where the other axes stand for each joint's table (machine coordinates, metres); default
     /// the centre of the travel.
     pub point: Option<Point3<f64>>,
@@ -80,83 +94,139 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
     let (model, file, unc) = (&loaded.model, &loaded.file, loaded.uncertainty());
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let travel = model.layout.travel;
-    let centre = Point3::from(Vector3::from_fn(|i, _| 0.5 * (travel.ranges[i][0] + travel.ranges[i][1])));
     let p = opts.probe;
+    let step = opts.step_m.unwrap_or(match opts.format {
+        Format::Linuxcnc | Format::Isg => 0.010,
+        Format::Sinumerik => 0.020,
+        Format::Grid => 0.050,
+    });
+    let nodes = match opts.nodes {
+        NodePlacement::Even => Nodes::even(step),
+        NodePlacement::Measured => Nodes::at_measured(step, &loaded.resolution),
+    };
+    let placed = nodes.describe(&travel, &loaded.resolution);
+    let centre = nodes.default_point(&travel);
+    // A refusal where nodes at the measured positions would be determined says so.
+    // A refusal says what would be determined: the reference point at a measured position,
+    // nodes at the measured positions.
+    let determined = |point: &Point3<f64>, functions: bool| -> Result<()> {
+        compensation::require_determined(model, &unc, &nodes, point, &p, functions).map_err(|e| {
+            let measured = Nodes::at_measured(step, &loaded.resolution);
+            let at_stop = measured.default_point(&travel);
+            let mut hints = Vec::new();
+            if !functions && unc.leaves_open_at(point) {
+                hints.push(format!(
+                    "the reference point ({}, {}, {}) m lies between measured positions where the data leave the error open: put --point at a measured position, e.g. ({}, {}, {}) m",
+                    point.x, point.y, point.z, at_stop.x, at_stop.y, at_stop.z
+                ));
+            }
+            let fine = compensation::require_determined(model, &unc, &measured, &at_stop, &p, functions).is_ok();
+            if fine && !nodes.any_measured() {
+                hints.push(MEASURED_NODES_HINT.to_string());
+            }
+            hints.into_iter().fold(e, |e, h| anyhow::anyhow!("{e:#}; {h}"))
+        })
+    };
+    // What a table leaves of the error is a measured figure only where the data determine it.
+    let keep = |x: &Point3<f64>| !unc.leaves_open_at(x);
+    let grid_step = residual_step(model);
     let mut said = String::new();
+    match opts.nodes {
+        NodePlacement::Measured if !nodes.any_measured() => {
+            let _ = writeln!(said, "--nodes measured: no axis's readings contradict the interpolation between its measured positions; nodes evenly spaced");
+        }
+        NodePlacement::Measured => {
+            let _ = writeln!(said, "nodes:\n{}", indent(&placed));
+        }
+        NodePlacement::Even => {}
+    }
     match opts.format {
         Format::Linuxcnc => {
-            let step = opts.step_m.unwrap_or(0.010);
             let point = opts.point.unwrap_or(centre);
-            compensation::require_determined(model, &unc, &point, &p, false)?;
+            determined(&point, false)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let tables = compensation::linuxcnc(model, step, &point, &p, b)?;
+            let tables = compensation::linuxcnc(model, &nodes, &point, &p, b)?;
             for t in &tables {
                 let name = format!("{}.comp", t.axis.letter().to_ascii_lowercase());
                 write(out, &name, &t.linuxcnc_text(opts.comp_type))?;
                 let _ = writeln!(said, "wrote {} ({} nodes)", out.join(&name).display(), t.nominal_m.len());
             }
-            let grid_step = residual_step(&model);
-            let r = compensation::residual(&model, grid_step, &p, |x| compensation::joint_correction(&tables, x));
-            let u95 = reference_line_u95(model, &unc, &point, &p);
-            let readme =
-                linuxcnc_readme(&file.topology, opts.comp_type, step, &point, &p, &r, grid_step, &reversal, &u95);
+            let r = compensation::residual_where(model, grid_step, &p, keep, |x| {
+                compensation::joint_correction(&tables, x)
+            });
+            let u95 = reference_line_u95(model, &unc, &nodes, &point, &p);
+            let u95_text = line_u95_text(&u95, &nodes);
+            let readme = linuxcnc_readme(
+                &file.topology,
+                opts.comp_type,
+                &placed,
+                &point,
+                &p,
+                &r,
+                grid_step,
+                &reversal,
+                &u95_text,
+            );
             write(out, "README.txt", &readme)?;
             said.push_str(&said_residual(&r, "positioning only"));
-            let _ = writeln!(said, "{}", line_u95_text(&u95));
+            let _ = writeln!(said, "{u95_text}");
         }
         Format::Isg => {
-            let step = opts.step_m.unwrap_or(0.010);
-            compensation::require_determined(model, &unc, &centre, &p, true)?;
+            determined(&centre, true)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let tables = isg::isg(model, step)?;
+            let tables = isg::isg(model, &nodes)?;
             let comment = format!("volcal ISG CSV export (machine {}), model {}", file.topology, model_path.display());
             for t in &tables {
                 let name = format!("isg_{}.csv", t.axis.letter().to_ascii_lowercase());
                 write(out, &name, &t.text(&comment))?;
                 let _ = writeln!(said, "wrote {} ({} records)", out.join(&name).display(), t.nominal_m.len());
             }
-            let grid_step = residual_step(&model);
-            let r = isg::interpolation_residual(&model, &tables, grid_step, &p);
+            let r = isg::interpolation_residual(model, &tables, grid_step, &p, keep);
             let records: usize = tables.iter().map(|t| t.nominal_m.len() + 1).sum();
             write(
                 out,
                 "README.txt",
-                &isg_readme(&model.layout.topology, step, records, &p, &r, grid_step, &reversal, b),
+                &isg_readme(&model.layout.topology, &placed, records, &p, &r, grid_step, &reversal, b),
             )?;
             said.push_str(&said_residual(&r, "all 21 functions, linear between the nodes"));
         }
         Format::Sinumerik => {
-            let step = opts.step_m.unwrap_or(0.020);
             let point = opts.point.unwrap_or(centre);
-            compensation::require_determined(model, &unc, &point, &p, false)?;
+            determined(&point, false)?;
             let (b, reversal) = backlash(opts.diagnosis.as_deref())?;
-            let (eec, cec) = sinumerik::sinumerik(model, step, &point, &p)?;
+            let (eec, cec) = sinumerik::sinumerik(model, &nodes, &point, &p)?;
             let comment =
                 format!("volcal SINUMERIK export (machine {}), model {}", file.topology, model_path.display());
             write(out, "eec.mpf", &sinumerik::eec_text(&eec, b, &comment))?;
             write(out, "cec.mpf", &sinumerik::cec_text(&cec, &comment))?;
             let _ = writeln!(
                 said,
-                "wrote {} ({} EEC tables) and {} ({} CEC tables), {} points each",
+                "wrote {} ({} EEC tables) and {} ({} CEC tables), points per table along {}",
                 out.join("eec.mpf").display(),
                 eec.len(),
                 out.join("cec.mpf").display(),
                 cec.len(),
-                eec[0].nominal_m.len()
+                eec.iter()
+                    .map(|t| format!("{} {}", t.input.letter(), t.nominal_m.len()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
-            let grid_step = residual_step(&model);
             let controller = sinumerik::controller(&eec, &cec);
-            let r = compensation::residual(&model, grid_step, &p, |x| controller.at(x));
+            let r = compensation::residual_where(model, grid_step, &p, keep, |x| controller.at(x));
             write(
                 out,
                 "README.txt",
-                &sinumerik_readme(&file.topology, step, &eec, &point, &p, &r, grid_step, &reversal, b),
+                &sinumerik_readme(&file.topology, &placed, &eec, &point, &p, &r, grid_step, &reversal, b),
             )?;
             said.push_str(&said_residual(&r, "positioning and straightness"));
         }
         Format::Grid => {
-            let step = opts.step_m.unwrap_or(0.050);
-            let pts = compensation::grid(model, &unc, step, &p)?;
+            let pts = compensation::grid(model, &unc, &nodes, &p).map_err(|e| {
+                match compensation::grid(model, &unc, &Nodes::at_measured(step, &loaded.resolution), &p) {
+                    Ok(_) if !nodes.any_measured() => anyhow::anyhow!("{e:#}; {MEASURED_NODES_HINT}"),
+                    _ => e,
+                }
+            })?;
             let mut csv = format!("{}\n", volcal_formats::compensation_grid::GRID_HEADER);
             for (x, e, u) in &pts {
                 let _ = writeln!(
@@ -190,12 +260,16 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
                 "model": file.provenance.input,
             });
             write(out, "grid.json", &serde_json::to_string_pretty(&json)?)?;
-            write(out, "README.txt", &grid_readme(step, &p))?;
+            write(out, "README.txt", &grid_readme(&placed, &p))?;
             let _ = writeln!(said, "wrote {} grid points to {}", pts.len(), out.join("grid.csv").display());
         }
     }
     Ok(said)
 }
+
+/// What a refusal adds when tables with nodes at the measured positions would be determined.
+const MEASURED_NODES_HINT: &str = "tables with nodes only at the measured positions are determined by the data: \
+     `--nodes measured` writes them (between those nodes the controller's linear interpolation is then not a measured value)";
 
 /// The grid the residual is computed on: a tenth of the longest travel.
 fn residual_step(model: &volcal::ErrorModel) -> f64 {
@@ -206,9 +280,10 @@ fn residual_step(model: &volcal::ErrorModel) -> f64 {
 /// The README's sentence on the error before and after, over the working volume.
 fn volume_residual(r: &Residual, grid_step: f64, p: &Vector3<f64>, left: &str) -> String {
     format!(
-        "From the model, over the working volume ({:.1} mm grid, {} points, probe offset ({}, {}, {}) mm):\nvolumetric error RMS {:.3} um, max {:.3} um before; RMS {:.3} um, max {:.3} um {left}.",
+        "From the model, over the working volume ({:.1} mm grid, {} points{}, probe offset ({}, {}, {}) mm):\nvolumetric error RMS {:.3} um, max {:.3} um before; RMS {:.3} um, max {:.3} um {left}.",
         grid_step * 1e3,
         r.points,
+        r.where_determined(),
         p.x * 1e3,
         p.y * 1e3,
         p.z * 1e3,
@@ -221,7 +296,8 @@ fn volume_residual(r: &Residual, grid_step: f64, p: &Vector3<f64>, left: &str) -
 
 fn said_residual(r: &Residual, what: &str) -> String {
     format!(
-        "volumetric error over the volume: RMS {:.3} um, max {:.3} um; after this compensation ({what}): RMS {:.3} um, max {:.3} um\n",
+        "volumetric error over the volume{}: RMS {:.3} um, max {:.3} um; after this compensation ({what}): RMS {:.3} um, max {:.3} um\n",
+        if r.points < r.grid_points { format!(" ({} grid points{})", r.points, r.where_determined()) } else { String::new() },
         r.rms_before_m * 1e6,
         r.max_before_m * 1e6,
         r.rms_after_m * 1e6,
@@ -231,18 +307,24 @@ fn said_residual(r: &Residual, what: &str) -> String {
 
 /// Largest expanded uncertainty (k = 2) of the positioning deviation along each axis's reference
 /// line through `point` (from the line's lower end, as an interferometer zeroed there measures
-/// it), metres: what a per-axis table carries of the identification.
+/// it; on an axis with nodes at its measured positions, from the first and at the nodes),
+/// metres: what a per-axis table carries of the identification.
 fn reference_line_u95(
     model: &volcal::ErrorModel,
     unc: &volcal::predict::Uncertainty<'_>,
+    nodes: &Nodes,
     point: &Point3<f64>,
     p: &Vector3<f64>,
 ) -> [f64; 3] {
     Axis::ALL.map(|a| {
         let mut start = *point;
-        start[a.index()] = model.layout.travel.range(a)[0];
+        let measured = nodes.measured_on(a);
+        start[a.index()] = measured.map_or(model.layout.travel.range(a)[0], |q| q[0]);
         let line = volcal::validate::axis_line(&model.layout.travel, a, &start);
-        let targets = line.targets(41);
+        let targets = match measured {
+            Some(q) => q.iter().map(|v| v - q[0]).collect(),
+            None => line.targets(41),
+        };
         volcal::validate::predict_positioning(model, unc, &line, p, &targets)
             .iter()
             .map(|t| 2.0 * t.sigma_m)
@@ -250,26 +332,28 @@ fn reference_line_u95(
     })
 }
 
-fn line_u95_text(u95: &[f64; 3]) -> String {
-    format!(
-        "positioning along the reference lines known to U95 X {:.3}, Y {:.3}, Z {:.3} um (largest along each line)",
-        u95[0] * 1e6,
-        u95[1] * 1e6,
-        u95[2] * 1e6
-    )
+fn line_u95_text(u95: &[f64; 3], nodes: &Nodes) -> String {
+    let each: Vec<String> = Axis::ALL
+        .iter()
+        .map(|&a| {
+            let at = if nodes.measured_on(a).is_some() { " (at its nodes)" } else { "" };
+            format!("{} {:.3}{at}", a.letter(), u95[a.index()] * 1e6)
+        })
+        .collect();
+    format!("positioning along the reference lines known to U95 {} um (largest along each line)", each.join(", "))
 }
 
 #[allow(clippy::too_many_arguments)]
 fn linuxcnc_readme(
     topology: &str,
     kind: CompFileType,
-    step: f64,
+    nodes: &str,
     point: &Point3<f64>,
     p: &Vector3<f64>,
     r: &Residual,
     grid_step: f64,
     reversal: &str,
-    u95: &[f64; 3],
+    u95_text: &str,
 ) -> String {
     format!(
         "LinuxCNC compensation tables written by volcal (machine {topology}).
@@ -286,16 +370,17 @@ Load them in the INI file (joint numbers as in your kinematics; trivkins XYZ: X=
   COMP_FILE = z.comp
   COMP_FILE_TYPE = {t}
 
-Each line: nominal forward reverse, in millimetres (machine units), nominal ascending, nodes
-evenly spaced about {step_mm} mm apart over the identified travel; LinuxCNC interpolates linearly between nodes and
-holds the end values outside. COMP_FILE_TYPE {t}: {meaning}. The forward column is used moving
+Each line: nominal forward reverse, in millimetres (machine units), nominal ascending; LinuxCNC
+interpolates linearly between nodes and holds the end values outside. Nodes:
+{nodes}
+COMP_FILE_TYPE {t}: {meaning}. The forward column is used moving
 up, the reverse column moving down; they differ by the backlash ({reversal}).
 
 What the format expresses: the positioning error of each joint along its own axis, as a function
 of that joint only, taken with the other axes at ({px}, {py}, {pz}) mm and the tool at probe
 offset ({ox}, {oy}, {oz}) mm. What it drops: straightness, the angular errors' lever arms away
 from that point, and squareness. From the model, over the working volume ({grid_mm} mm grid,
-{n} points, same probe offset): volumetric error RMS {b_rms:.3} um, max {b_max:.3} um before;
+{n} points{of}, same probe offset): volumetric error RMS {b_rms:.3} um, max {b_max:.3} um before;
 RMS {a_rms:.3} um, max {a_max:.3} um left after this compensation.
 
 The tables carry the identification's uncertainty:
@@ -306,9 +391,7 @@ bidirectional runs), as launch_configs/plans/machine_tool_compensation.yaml does
 laser interferometer along each line (`volcal iso230-2`; in simulation `volcal validate
 --compensation`).
 ",
-        u95_text = line_u95_text(u95),
         t = kind as u8,
-        step_mm = step * 1e3,
         meaning = match kind {
             CompFileType::Offset => "the columns are the offsets added to the commanded position",
             CompFileType::Actual => "the columns are where the machine actually is at the nominal position",
@@ -321,6 +404,8 @@ laser interferometer along each line (`volcal iso230-2`; in simulation `volcal v
         oz = p.z * 1e3,
         grid_mm = grid_step * 1e3,
         n = r.points,
+        of = r.where_determined(),
+        nodes = indent(nodes),
         b_rms = r.rms_before_m * 1e6,
         b_max = r.max_before_m * 1e6,
         a_rms = r.rms_after_m * 1e6,
@@ -328,29 +413,34 @@ laser interferometer along each line (`volcal iso230-2`; in simulation `volcal v
     )
 }
 
-fn grid_readme(step: f64, p: &Vector3<f64>) -> String {
+fn grid_readme(nodes: &str, p: &Vector3<f64>) -> String {
     format!(
         "Volumetric error grid written by volcal.
 
-grid.csv: x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,u95_um, one row per node, x varying fastest; nodes
-evenly spaced about {step_mm} mm apart over the identified travel, ends included, tool at probe
-offset ({ox}, {oy}, {oz}) mm. grid.json: the same as axes and arrays.
+grid.csv: x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,u95_um, one row per node, x varying fastest, tool at
+probe offset ({ox}, {oy}, {oz}) mm. grid.json: the same as axes and arrays. Nodes:
+{nodes}
 
 error = actual - (commanded + probe offset): a controller with grid compensation adds -error
 (interpolated between nodes) to the commanded position. u95_um: expanded uncertainty (k = 2) of
 the error vector's largest component direction. All 21 error functions are in it.
 ",
-        step_mm = step * 1e3,
+        nodes = indent(nodes),
         ox = p.x * 1e3,
         oy = p.y * 1e3,
         oz = p.z * 1e3,
     )
 }
 
+/// `text`'s lines indented by two spaces.
+fn indent(text: &str) -> String {
+    text.lines().map(|l| format!("  {l}")).collect::<Vec<_>>().join("\n")
+}
+
 #[allow(clippy::too_many_arguments)]
 fn isg_readme(
     topo: &volcal::Topology,
-    step: f64,
+    nodes: &str,
     records: usize,
     p: &Vector3<f64>,
     r: &Residual,
@@ -370,8 +460,9 @@ fn isg_readme(
 Files: isg_x.csv, isg_y.csv, isg_z.csv. Each: `//` comment lines, a header `X EXX EYX EZX EAX EBX ECX`
 (resp. Y, Z), then one record per node: the axis position in mm, the translational errors EXK EYK
 EZK in mm, the angular errors EAK EBK ECK in rad (the units TF5280 prescribes for every file format:
-offsets in millimetres, angles in radians, arguments in millimetres). Nodes evenly spaced about
-{step_mm} mm apart over the identified travel, ends included. After a `#` file break, isg_y.csv holds
+offsets in millimetres, angles in radians, arguments in millimetres). Nodes:
+{nodes}
+After a `#` file break, isg_y.csv holds
 the squareness C0Y and isg_z.csv B0Z and A0Z (ISO 230-1 position errors, rad; volcal's EC0Y, EB0Z,
 EA0Z). {records} records in all.
 
@@ -410,7 +501,7 @@ Backlash is not part of the volumetric compensation: {reversal}. The ISG kernel 
 in the axis parameters: P-AXIS-00103 getriebe[0].lose in 0.1 um ({lose}) and P-AXIS-00021
 lr_param.anwahl_losekomp (the direction the compensation acts in).
 ",
-        step_mm = step * 1e3,
+        nodes = indent(nodes),
         lose = lose.join(", "),
         residual = volume_residual(r, grid_step, p, "left by the interpolation between nodes"),
     )
@@ -419,7 +510,7 @@ lr_param.anwahl_losekomp (the direction the compensation acts in).
 #[allow(clippy::too_many_arguments)]
 fn sinumerik_readme(
     topology: &str,
-    step: f64,
+    nodes: &str,
     eec: &[sinumerik::Table],
     point: &Point3<f64>,
     p: &Vector3<f64>,
@@ -443,8 +534,9 @@ $AA_ENC_COMP[0,N,AXi] with $AA_ENC_COMP_STEP, _MIN, _MAX, _IS_MODULO. cec.mpf (%
 sag/cross compensation (CEC) tables, one per base axis and straightness direction: $AN_CEC[t,N] with
 $AN_CEC_INPUT_AXIS (base axis), $AN_CEC_OUTPUT_AXIS (compensated axis), $AN_CEC_STEP, _MIN, _MAX,
 _DIRECTION 0, _MULT_BY_TABLE 0, _IS_MODULO 0. Both: CHANDATA(1) ... M17, positions and values in mm
-(metric), {points} points per table, evenly spaced about {step_mm} mm apart over the identified
-travel. Axis names: AX1 = X, AX2 = Y, AX3 = Z (edit them if your machine axes differ).
+(metric), at most {points} points per table. Nodes:
+{nodes}
+Axis names: AX1 = X, AX2 = Y, AX3 = Z (edit them if your machine axes differ).
 
 Load (K3 Compensations, SINUMERIK Function Manual Extended Functions): with MD32700
 ENC_COMP_ENABLE = 0 and MD32710 CEC_ENABLE = 0, MD38000 $MA_MM_ENC_COMP_MAX_POINTS >= {points} and
@@ -469,7 +561,7 @@ each reversal; positive in the normal case, the measuring system leading the mov
 {md}
 ",
         md = md.join("\n"),
-        step_mm = step * 1e3,
+        nodes = indent(nodes),
         px = point.x * 1e3,
         py = point.y * 1e3,
         pz = point.z * 1e3,

@@ -133,6 +133,9 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Node spacing, millimetres (default: linuxcnc 10, isg 10, sinumerik 20, grid 50).
         #[arg(long, allow_hyphen_values = true)]
         step_mm: Option<f64>,
+        /// Where the nodes lie: `even` (--step-mm apart) or `measured` (at the measured positions, e.g. a tracer's stops, of each axis whose readings contradict the interpolation between them: the only tables the data determine there; even on the others).
+        #[arg(long, value_enum, default_value = "even")]
+        nodes: volcal_cli::export_cmd::NodePlacement,
         /// Where the other axes stand for each joint's table, x,y,z in metres (machine coordinates; default: the travel's centre).
         #[arg(long, allow_hyphen_values = true)]
         point: Option<String>,
@@ -387,11 +390,12 @@ fn run() -> anyhow::Result<ExitCode> {
             let n = commands::map_cmd(&model, step, commands::parse_vec3(&probe)?, &out)?;
             eprintln!("wrote {n} grid points to {}", out.display());
         }
-        Command::Export { model, format, out, step_mm, point, probe, comp_type, diagnosis } => {
+        Command::Export { model, format, out, step_mm, nodes, point, probe, comp_type, diagnosis } => {
             use volcal_formats::compensation::CompFileType;
             let opts = volcal_cli::export_cmd::ExportOptions {
                 format,
                 step_m: step_mm.map(|s| s * 1e-3),
+                nodes,
                 point: point.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from),
                 probe: commands::parse_vec3(&probe)?,
                 comp_type: if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual },

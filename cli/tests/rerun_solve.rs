@@ -5,6 +5,8 @@
 
 mod common;
 
+use volcal::predict::AxisResolution;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -68,18 +70,8 @@ fn solve_recording_verifies_and_has_the_expected_entities() {
 /// stops (read back by rerun-sdk).
 #[test]
 fn a_contradicted_interpolation_is_not_drawn_as_known() {
-    use volcal_tests::auto_study::{campaign, case, Density, Measure};
-    use volcal_tests::truth_families::Family;
     let dir = volcal_tests::scratch("rerun-contradicted");
-    let case = case(Family::PiecewiseBump, "FXYZ", Measure::Tracer, Density::Sparse);
-    // Seed 3001: the first of `representation_auto`'s held-out seeds that is warned.
-    let (c, _) = campaign(&case, 3001);
-    volcal_formats::campaign_csv::write(&dir.join("campaign.csv"), &c).unwrap();
-    std::fs::write(
-        dir.join("machine.yaml"),
-        "topology: FXYZ\ntravel: {x: [0.0, 1.0], y: [0.0, 0.8], z: [-0.6, 0.0]}\n",
-    )
-    .unwrap();
+    common::contradicted_tracer_campaign(&dir);
     let solve = ["solve", "campaign.csv", "--machine", "machine.yaml", "--out", "model.json", "--rerun", "solve.rrd"];
     let out = volcal(&dir, &solve);
     let said = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
@@ -107,6 +99,53 @@ fn a_contradicted_interpolation_is_not_drawn_as_known() {
         .unwrap();
     let text = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && text.contains("measure at more positions along"), "{text}");
+    assert!(text.contains("--nodes measured"), "the refusal names the tables the data determine: {text}");
+
+    // The tables the data determine: nodes at the contradicted axes' measured positions, every
+    // node's error determined, and the README says that between them nothing is.
+    let out = volcal(&dir, &["export", "model.json", "--format", "linuxcnc", "--nodes", "measured", "--out", "comp"]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{said}");
+    let readme = std::fs::read_to_string(dir.join("comp/README.txt")).unwrap();
+    for a in &axes {
+        let AxisResolution::AtPositions { positions, .. } = &loaded.resolution[a.index()] else { unreachable!() };
+        let table =
+            std::fs::read_to_string(dir.join(format!("comp/{}.comp", a.letter().to_ascii_lowercase()))).unwrap();
+        let nominal: Vec<f64> = table.lines().map(|l| l.split_whitespace().next().unwrap().parse().unwrap()).collect();
+        assert_eq!(nominal.len(), positions.len(), "{table}");
+        for (n, q) in nominal.iter().zip(positions) {
+            assert!((n - q * 1e3).abs() < 1e-6, "node {n} mm, measured position {} mm", q * 1e3);
+        }
+        assert!(
+            readme.contains(&format!("{}: {} nodes at the measured positions", a.letter(), positions.len())),
+            "{readme}"
+        );
+    }
+    assert!(readme.contains("NOT DETERMINED by the data"), "{readme}");
+    assert!(!said.contains("U95 X inf") && !said.contains(" inf,"), "every node's uncertainty is finite: {said}");
+    // A reference point between two stops of a contradicted axis is refused, with where to put it.
+    let AxisResolution::AtPositions { positions, .. } = &loaded.resolution[axes[0].index()] else { unreachable!() };
+    let mut point = [0.5, 0.4, -0.3];
+    point[axes[0].index()] = 0.5 * (positions[4] + positions[5]);
+    let point = format!("{},{},{}", point[0], point[1], point[2]);
+    let export =
+        ["export", "model.json", "--format", "linuxcnc", "--nodes", "measured", "--point", &point, "--out", "off"];
+    let refused = Command::new(env!("CARGO_BIN_EXE_volcal")).current_dir(&dir).args(export).output().unwrap();
+    let text = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && text.contains("put --point at a measured position"), "{text}");
+    let out = volcal(&dir, &["export", "model.json", "--format", "grid", "--nodes", "measured", "--out", "grid"]);
+    assert!(out.status.success());
+    let grid = std::fs::read_to_string(dir.join("grid/grid.csv")).unwrap();
+    let rows: Vec<Vec<f64>> =
+        grid.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert!(rows.iter().all(|r| r[6].is_finite()), "a grid node without a U95");
+    for a in &axes {
+        let AxisResolution::AtPositions { positions, .. } = &loaded.resolution[a.index()] else { unreachable!() };
+        let mut on: Vec<f64> = rows.iter().map(|r| r[a.index()]).collect();
+        on.sort_by(f64::total_cmp);
+        on.dedup();
+        assert_eq!(on.len(), positions.len(), "grid nodes along {}: {on:?}", a.letter());
+    }
 
     let Some(py) = volcal_tests::checker_python() else { return };
     rrd_verify(&py, &dir.join("solve.rrd"));

@@ -22,7 +22,7 @@
 //! - Records on a grid are interpolated linearly with `Interpolation GRID` (diagnosis IDs 70471,
 //!   70474); what linear interpolation between the nodes loses is [`interpolation_residual`].
 
-use crate::compensation::{axis_nodes, Residual};
+use crate::compensation::{Nodes, Residual};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
@@ -52,14 +52,14 @@ pub fn isg_name(s: Squareness) -> &'static str {
     &s.name()[1..]
 }
 
-/// The component errors of each axis at nodes about `step_m` apart, and the squareness errors
-/// with the axis they describe.
-pub fn isg(model: &ErrorModel, step_m: f64) -> Result<Vec<IsgTable>> {
+/// The component errors of each axis at its `nodes` (evenly spaced: `Interpolation GRID`), and
+/// the squareness errors with the axis they describe.
+pub fn isg(model: &ErrorModel, nodes: &Nodes) -> Result<Vec<IsgTable>> {
     let travel = model.layout.travel;
     Axis::ALL
         .iter()
         .map(|&a| {
-            let nominal_m = axis_nodes(&travel, a, step_m, ISG_MAX_RECORDS, "volcal's ISG export")?;
+            let nominal_m = nodes.along(&travel, a, ISG_MAX_RECORDS, true, "volcal's ISG export")?;
             let values = nominal_m
                 .iter()
                 .map(|&q| {
@@ -119,12 +119,19 @@ impl IsgTable {
 }
 
 /// What the tables lose against the model: the error left where the controller compensates the
-/// linearly interpolated functions exactly, on a grid of `step_m` at probe offset `probe`. To
-/// first order the difference of a function from its interpolation acts through the same lever
-/// arms as the function (`Topology::lever_arm`); squareness is carried exactly.
-pub fn interpolation_residual(model: &ErrorModel, tables: &[IsgTable], step_m: f64, probe: &Vector3<f64>) -> Residual {
+/// linearly interpolated functions exactly, on a grid of `step_m` at probe offset `probe`, over
+/// the points where `keep` holds ([`crate::compensation::residual_where`]). To first order the
+/// difference of a function from its interpolation acts through the same lever arms as the
+/// function (`Topology::lever_arm`); squareness is carried exactly.
+pub fn interpolation_residual(
+    model: &ErrorModel,
+    tables: &[IsgTable],
+    step_m: f64,
+    probe: &Vector3<f64>,
+    keep: impl Fn(&Point3<f64>) -> bool,
+) -> Residual {
     let topology = &model.layout.topology;
-    crate::compensation::residual(model, step_m, probe, |x: &Point3<f64>| {
+    crate::compensation::residual_where(model, step_m, probe, keep, |x: &Point3<f64>| {
         let mut lost = Vector3::zeros();
         for t in tables {
             let q = x[t.axis.index()];
@@ -265,7 +272,7 @@ mod tests {
     fn written(model: &ErrorModel, step_m: f64, name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("volcal-isg-{name}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        for t in isg(model, step_m).unwrap() {
+        for t in isg(model, &Nodes::even(step_m)).unwrap() {
             let file = dir.join(format!("isg_{}.csv", t.axis.letter().to_ascii_lowercase()));
             std::fs::write(file, t.text("test")).unwrap();
         }

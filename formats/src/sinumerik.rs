@@ -26,7 +26,7 @@
 //! reference point (zero there), so that EEC (which holds the error at the point) and the
 //! CEC tables add up to the model's error along the three lines without counting it twice.
 
-use crate::compensation::{reference_lines, ReferenceLine};
+use crate::compensation::{reference_lines, Nodes, ReferenceLine};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Point3, Vector3};
 use std::collections::BTreeMap;
@@ -70,11 +70,11 @@ impl Table {
 /// direction, six), sampled along the reference lines through `point`.
 pub fn sinumerik(
     model: &ErrorModel,
-    step_m: f64,
+    nodes: &Nodes,
     point: &Point3<f64>,
     probe: &Vector3<f64>,
 ) -> Result<(Vec<Table>, Vec<Table>)> {
-    let lines = reference_lines(model, step_m, point, probe, SINUMERIK_MAX_POINTS, "SINUMERIK")?;
+    let lines = reference_lines(model, nodes, point, probe, SINUMERIK_MAX_POINTS, true, "SINUMERIK")?;
     let at_point = model.error(point, probe);
     let eec = lines
         .iter()
@@ -320,7 +320,7 @@ mod tests {
         );
         let m = volcal_sim::random_truth(layout, &Default::default(), &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
         let (point, p) = (Point3::new(0.5, 0.4, -0.3), Vector3::zeros());
-        let (eec, cec) = sinumerik(&m, 0.02, &point, &p).unwrap();
+        let (eec, cec) = sinumerik(&m, &Nodes::even(0.02), &point, &p).unwrap();
         let dir = std::env::temp_dir().join(format!("volcal-sinumerik-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("eec.mpf"), eec_text(&eec, [0.0; 3], "test")).unwrap();

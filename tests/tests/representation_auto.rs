@@ -226,8 +226,12 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
         let what = volcal_formats::report::what_to_measure(&back.model, &unc, &p);
         assert!(what.contains(&format!("measure at more positions along {}", a.letter())), "{what}");
     }
-    let refused = volcal_formats::compensation::require_determined(&back.model, &unc, &at_stops, &p, true);
+    use volcal_formats::compensation::{require_determined, Nodes};
+    let refused = require_determined(&back.model, &unc, &Nodes::even(0.01), &at_stops, &p, true);
     assert!(refused.is_err_and(|e| e.to_string().contains("measure at more positions along")));
+    // Per-axis lines with nodes at the contradicted axes' stops hold only what the data determine.
+    let at_measured = Nodes::at_measured(0.01, &back.resolution);
+    require_determined(&back.model, &unc, &at_measured, &at_stops, &p, false).unwrap();
 }
 
 /// The dense tracer's 21 stops per edge determine 18 intervals: an axis whose refinement

@@ -301,3 +301,20 @@ impl CycloneSubscriber {
             .collect()
     }
 }
+
+/// Writes into `dir` a laser-tracer campaign (`campaign.csv`: 4 stations, the 12 edges, 11
+/// stops per edge) over a machine whose guideways carry a bump shorter than the stops' spacing,
+/// and the two-line machine file (`machine.yaml`): held-out seed 3001 of `representation_auto`,
+/// the first whose readings contradict the interpolation between the stops (of X).
+pub fn contradicted_tracer_campaign(dir: &Path) {
+    use volcal_tests::auto_study::{campaign, case, Density, Measure};
+    use volcal_tests::truth_families::Family;
+    let case = case(Family::PiecewiseBump, "FXYZ", Measure::Tracer, Density::Sparse);
+    let (c, _) = campaign(&case, 3001);
+    volcal_formats::campaign_csv::write(&dir.join("campaign.csv"), &c).unwrap();
+    std::fs::write(
+        dir.join("machine.yaml"),
+        "topology: FXYZ\ntravel: {x: [0.0, 1.0], y: [0.0, 0.8], z: [-0.6, 0.0]}\n",
+    )
+    .unwrap();
+}
