@@ -106,7 +106,6 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
     };
     let placed = nodes.describe(&travel, &loaded.resolution);
     let centre = nodes.default_point(&travel);
-    // A refusal where nodes at the measured positions would be determined says so.
     // A refusal says what would be determined: the reference point at a measured position,
     // nodes at the measured positions.
     let determined = |point: &Point3<f64>, functions: bool| -> Result<()> {

@@ -86,7 +86,7 @@ impl JointTable {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReferenceLine {
     pub axis: Axis,
-    /// Nodes (commanded positions of `axis`), metres, ascending, evenly spaced, ends included.
+    /// Nodes (commanded positions of `axis`), metres, ascending ([`Nodes::along`]).
     pub nominal_m: Vec<f64>,
     /// The volumetric error `e = actual - (commanded + probe offset)` at each node, metres.
     pub error_m: Vec<Vector3<f64>>,
@@ -102,12 +102,12 @@ pub fn check_step(step_m: f64) -> Result<()> {
 
 /// Where the nodes of each axis's table lie (`volcal export --nodes`).
 ///
-/// Evenly spaced by default. Along an axis that the readings resolve only at its measured
-/// positions ([`AxisResolution::AtPositions`], e.g. a laser tracer's stops), [`Nodes::at_measured`]
-/// puts the nodes at those positions instead: the error there is determined by the data even
-/// where the readings contradict the model's interpolation between them, so a table can be
-/// exported that holds only measured values, and the controller's own linear interpolation
-/// between its nodes is the only thing between them (what the README of the export says).
+/// Evenly spaced by default. Along an axis whose readings contradict the model's interpolation
+/// between its measured positions ([`AxisResolution::AtPositions`] with `contradicted`, e.g. a
+/// laser tracer's stops over a feature shorter than their spacing), the error is determined by
+/// the data only at those positions; [`Nodes::at_measured`] puts the nodes there, so that a
+/// table holds only what the data determine and between its nodes there is only the
+/// controller's own linear interpolation (which the README of the export says).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Nodes {
     /// Spacing of evenly placed nodes, metres.
@@ -207,7 +207,7 @@ impl Nodes {
         for a in Axis::ALL {
             let Some(q) = self.measured_on(a) else {
                 let [lo, hi] = travel.range(a);
-                let n = (((hi - lo) / self.step_m).round() as usize + 1).max(2);
+                let n = even_count(lo, hi, self.step_m).max(2);
                 out.push(format!(
                     "{}: {n} nodes evenly spaced about {} mm apart over the identified travel, ends included",
                     a.letter(),
@@ -258,10 +258,15 @@ fn fmt_mm(m: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
+/// How many nodes about `step_m` apart span `[lo, hi]`, ends included (before the minimum of 2).
+fn even_count(lo: f64, hi: f64, step_m: f64) -> usize {
+    ((hi - lo) / step_m).round() as usize + 1
+}
+
 /// Evenly spaced nodes over `[lo, hi]`, about `step_m` apart, ends included; refused with what
 /// to change when there are more than `max_nodes`.
 fn even_nodes(lo: f64, hi: f64, step_m: f64, max_nodes: usize, a: Axis, controller: &str) -> Result<Vec<f64>> {
-    let n = ((hi - lo) / step_m).round() as usize + 1;
+    let n = even_count(lo, hi, step_m);
     if n > max_nodes {
         bail!(
             "axis {}: {n} nodes at {} mm over {:.1} mm of travel; {controller} reads at most {max_nodes} nodes per table (use --step-mm {:.3} or more)",
