@@ -336,6 +336,20 @@ pub struct MeasuredPositions {
     /// files from before the check.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub interpolation_contradicted: bool,
+    /// How much larger the variance of the interpolation between the positions is than the
+    /// covariance states (the leave-one-position-out check's ratio where above 1): predictions
+    /// there have their covariance scaled by it. Absent (1) in files from before the scale,
+    /// where the axis was not checked and where the ratio is not above 1.
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub interpolation_variance_scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+fn is_unit_scale(s: &f64) -> bool {
+    *s == 1.0
 }
 
 /// A model read back: the error model, its covariance and what the data left undetermined.
@@ -414,11 +428,14 @@ impl ModelFile {
             measured_positions: Axis::ALL
                 .iter()
                 .filter_map(|&a| match &sol.resolution[a.index()] {
-                    AxisResolution::AtPositions { positions, contradicted, .. } => Some(MeasuredPositions {
-                        axis: a.letter().to_string(),
-                        positions_m: positions.clone(),
-                        interpolation_contradicted: *contradicted,
-                    }),
+                    AxisResolution::AtPositions { positions, contradicted, interpolation_scale, .. } => {
+                        Some(MeasuredPositions {
+                            axis: a.letter().to_string(),
+                            positions_m: positions.clone(),
+                            interpolation_contradicted: *contradicted,
+                            interpolation_variance_scale: *interpolation_scale,
+                        })
+                    }
                     AxisResolution::Everywhere => None,
                 })
                 .collect(),
@@ -437,7 +454,11 @@ impl ModelFile {
             if m.positions_m.windows(2).any(|w| !(w[0] < w[1])) || m.positions_m.iter().any(|v| !v.is_finite()) {
                 bail!("field measured_positions[{j}]: positions must be finite and increasing");
             }
-            let r = AxisResolution::at(m.positions_m.clone());
+            let s = m.interpolation_variance_scale;
+            if !(s.is_finite() && s > 0.0) {
+                bail!("field measured_positions[{j}].interpolation_variance_scale: must be a positive number, got {s}");
+            }
+            let r = AxisResolution::at(m.positions_m.clone()).with_interpolation_scale(s);
             out[a.index()] = if m.interpolation_contradicted { r.contradicted() } else { r };
         }
         Ok(out)

@@ -117,14 +117,19 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
 /// readings contradict that interpolation, in words (empty when the readings resolve every axis
 /// everywhere).
 pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
-    let (mut borne, mut contradicted) = (Vec::new(), Vec::new());
+    let (mut borne, mut contradicted, mut scaled) = (Vec::new(), Vec::new(), Vec::new());
     for a in Axis::ALL {
         let r = &unc.resolution[a.index()];
         if let Some(said) = positions_of(a, r) {
             if r.is_contradicted() {
                 contradicted.push(said)
             } else {
-                borne.push(said)
+                borne.push(said);
+                if let predict::AxisResolution::AtPositions { interpolation_scale: s, .. } = r {
+                    if *s != 1.0 {
+                        scaled.push(format!("{} {s:.2}", a.letter()));
+                    }
+                }
             }
         }
     }
@@ -134,6 +139,13 @@ pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
             out,
             "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1).",
             borne.join(", ")
+        );
+    }
+    if !scaled.is_empty() {
+        let _ = writeln!(
+            out,
+            "There its uncertainty is widened to what leaving each position out showed: the interpolation's variance times {} (the left-out readings' prediction error against the variance the fit stated for it).",
+            scaled.join(", ")
         );
     }
     if !contradicted.is_empty() {

@@ -311,9 +311,11 @@ pub const REFINE_P: f64 = 1e-3;
 /// smoothing is replaced.
 ///
 /// Axes left bounded by their positions then have their interpolation checked against the
-/// readings ([`check_interpolation`]). Where the readings contradict it, the solution's
-/// resolution of that axis says so ([`AxisResolution::contradicted`]): predictions between its
-/// positions are then not determined, and a warning says what to measure.
+/// readings ([`check_interpolation`]): the variance of a prediction between the positions is
+/// scaled up by what leaving each position out showed ([`AxisResolution::with_interpolation_scale`]),
+/// and where the readings contradict the interpolation, the solution's resolution of that axis
+/// says so ([`AxisResolution::contradicted`]): predictions between its positions are then not
+/// determined, and a warning says what to measure.
 pub fn solve_auto(
     topology: &Topology,
     travel: Travel,
@@ -325,12 +327,18 @@ pub fn solve_auto(
     let cx = Context { topology, travel, obs, opts, auto, overrides };
     let mut out = choose_knots(&cx)?;
     out.interpolation = check_interpolation(&out, &cx);
-    // Between the positions of a contradicted axis the map is not determined by the data: the
-    // interpolation there is what the readings refute, and its uncertainty with it.
-    for c in out.interpolation.iter().filter(|c| c.contradicted()) {
+    // Between the positions of a checked axis the interpolation's variance is what leaving
+    // each position out showed, where that is more than the fit states; where the readings
+    // contradict the interpolation the map there
+    // is not determined by the data: the interpolation is what the readings refute, and its
+    // uncertainty with it.
+    for c in &out.interpolation {
         let r = &mut out.solution.resolution[c.axis.index()];
-        *r = std::mem::take(r).contradicted();
-        out.solution.warnings.push(c.statement());
+        *r = std::mem::take(r).with_interpolation_scale(c.ratio().max(1.0));
+        if c.contradicted() {
+            *r = std::mem::take(r).contradicted();
+            out.solution.warnings.push(c.statement());
+        }
     }
     Ok(out)
 }

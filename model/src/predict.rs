@@ -34,6 +34,18 @@ pub enum AxisResolution {
         /// ([`crate::interpolation`]): there the functions are not determined by the data,
         /// only at the positions themselves.
         contradicted: bool,
+        /// How much larger the variance of the interpolation between the positions is than the
+        /// fit states: the leave-one-position-out check's ratio
+        /// ([`crate::interpolation::InterpolationCheck::ratio`]) where it is above 1, else 1
+        /// (and 1 where the axis was not checked). The covariance of a prediction between the
+        /// positions is scaled by it: the cross-validation estimate of the prior's variance,
+        /// which stays right where the prior's shape is not the truth's (Bachoc 2013, *Cross
+        /// validation and maximum likelihood estimations of hyper-parameters of Gaussian
+        /// processes with model misspecification*), where REML's, a likelihood's, does not.
+        /// Never below 1: a ratio below one, from a few positions, is no evidence that the
+        /// interpolation is better than the fit states, and a metrology tool does not narrow an
+        /// uncertainty on it.
+        interpolation_scale: f64,
     },
 }
 
@@ -42,15 +54,37 @@ impl AxisResolution {
     /// of the median spacing of a position counts as measured.
     pub fn at(positions: Vec<f64>) -> AxisResolution {
         let tolerance_m = median_spacing(&positions) * 0.01;
-        AxisResolution::AtPositions { positions, tolerance_m, contradicted: false }
+        AxisResolution::AtPositions { positions, tolerance_m, contradicted: false, interpolation_scale: 1.0 }
+    }
+
+    /// The same, with the interpolation's variance between the positions scaled by `scale`
+    /// (the leave-one-position-out check's ratio; a resolution everywhere interpolates nothing).
+    pub fn with_interpolation_scale(self, scale: f64) -> AxisResolution {
+        match self {
+            AxisResolution::AtPositions { positions, tolerance_m, contradicted, .. } => {
+                AxisResolution::AtPositions { positions, tolerance_m, contradicted, interpolation_scale: scale }
+            }
+            AxisResolution::Everywhere => AxisResolution::Everywhere,
+        }
+    }
+
+    /// The scale of the variance of a prediction at coordinate `q`: the interpolation's
+    /// between the positions, `None` at a position or where the axis is resolved everywhere.
+    pub fn interpolation_scale_at(&self, q: f64) -> Option<f64> {
+        match self {
+            AxisResolution::AtPositions { interpolation_scale, .. } if self.interpolates(q) => {
+                Some(*interpolation_scale)
+            }
+            _ => None,
+        }
     }
 
     /// The same, with the readings contradicting the interpolation between the positions (a
     /// resolution everywhere has nothing interpolated to contradict and stays as it is).
     pub fn contradicted(self) -> AxisResolution {
         match self {
-            AxisResolution::AtPositions { positions, tolerance_m, .. } => {
-                AxisResolution::AtPositions { positions, tolerance_m, contradicted: true }
+            AxisResolution::AtPositions { positions, tolerance_m, interpolation_scale, .. } => {
+                AxisResolution::AtPositions { positions, tolerance_m, contradicted: true, interpolation_scale }
             }
             AxisResolution::Everywhere => AxisResolution::Everywhere,
         }
@@ -148,6 +182,17 @@ impl<'a> Uncertainty<'a> {
         Axis::ALL.iter().any(|&a| self.resolution[a.index()].leaves_open(a.coord(x)))
     }
 
+    /// The scale of the covariance of a prediction at `x`: the largest interpolation scale of
+    /// the axes `x` lies between the positions of ([`AxisResolution::interpolation_scale_at`]),
+    /// 1 where it lies at the positions of all of them.
+    pub fn interpolation_scale_at(&self, x: &Point3<f64>) -> f64 {
+        Axis::ALL
+            .iter()
+            .filter_map(|&a| self.resolution[a.index()].interpolation_scale_at(a.coord(x)))
+            .reduce(f64::max)
+            .unwrap_or(1.0)
+    }
+
     /// How much the linear functional with sparse rows `(index, value)` (one row per output
     /// component) depends on the undetermined directions: `||G U||_F / ||G||_F`, 0 to 1.
     pub fn share<'r>(&self, rows: impl Iterator<Item = &'r [(usize, f64)]>) -> f64 {
@@ -178,7 +223,9 @@ pub struct PointError {
     pub p: Vector3<f64>,
     /// `e = actual - (X + p)`.
     pub e: Vector3<f64>,
-    /// Covariance of `e` (of its determined part; see [`PointError::is_determined`]).
+    /// Covariance of `e` (of its determined part; see [`PointError::is_determined`]); between
+    /// measured positions scaled by the interpolation's variance scale
+    /// ([`Uncertainty::interpolation_scale_at`]).
     pub cov: Matrix3<f64>,
     /// How much `e` depends on directions the data leave undetermined ([`Uncertainty::share`]).
     pub undetermined: f64,
@@ -254,20 +301,22 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
     } else {
         0.0
     };
-    // Interpolated along some axis, and whether along a contradicted one: one pass over the axes.
-    let (mut interpolated, mut between_contradicted) = (false, false);
+    // Interpolated along some axis, whether along a contradicted one, and the largest scale of
+    // the interpolations' variance: one pass over the axes.
+    let (mut interpolated, mut between_contradicted, mut scale) = (false, false, None::<f64>);
     for a in Axis::ALL {
         let r = &unc.resolution[a.index()];
-        if r.interpolates(a.coord(x)) {
+        if let Some(s) = r.interpolation_scale_at(a.coord(x)) {
             interpolated = true;
             between_contradicted |= r.is_contradicted();
+            scale = Some(scale.map_or(s, |t| t.max(s)));
         }
     }
     PointError {
         x: *x,
         p: *p,
         e: s.apply(&model.u),
-        cov: propagate(&s, unc.covariance),
+        cov: propagate(&s, unc.covariance) * scale.unwrap_or(1.0),
         undetermined,
         interpolated,
         between_contradicted,
@@ -401,7 +450,8 @@ pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunctio
             v += bi * bj * cov[(off + i, off + j)];
         }
     }
-    v.max(0.0).sqrt()
+    let scale = unc.resolution[f.axis.index()].interpolation_scale_at(q).unwrap_or(1.0);
+    (v * scale).max(0.0).sqrt()
 }
 
 /// Value and range of a function over its travel, for reports (the paper's Table 2).

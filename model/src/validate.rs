@@ -124,6 +124,7 @@ pub fn predict_positioning(
     let cov = unc.covariance;
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
+    let start_scale = unc.interpolation_scale_at(&line.start);
     targets
         .iter()
         .map(|&s| {
@@ -131,7 +132,8 @@ pub fn predict_positioning(
             let dev = n.dot(&(model.error(&x, p) - e0));
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
-            let var = if with_cov { quadratic_form(cov, &g) } else { 0.0 };
+            let scale = start_scale.max(unc.interpolation_scale_at(&x));
+            let var = if with_cov { quadratic_form(cov, &g) * scale } else { 0.0 };
             let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
                 && !start_open
                 && !unc.leaves_open_at(&x);

@@ -232,6 +232,36 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
     // Per-axis lines with nodes at the contradicted axes' stops hold only what the data determine.
     let at_measured = Nodes::at_measured(0.01, &back.resolution);
     require_determined(&back.model, &unc, &at_measured, &at_stops, &p, false).unwrap();
+
+    // Between the stops of an axis whose readings bear the interpolation out, the prediction's
+    // covariance is the fit's times what leaving each stop out showed (read from the file), and
+    // at the stops it is the fit's.
+    let unit = back.resolution.clone().map(|r| r.with_interpolation_scale(1.0));
+    let fit_only = predict::Uncertainty::new(&back.covariance, &back.undetermined).with_resolution(&unit);
+    let borne: Vec<volcal::Axis> = volcal::Axis::ALL.into_iter().filter(|a| !contradicted.contains(a)).collect();
+    assert!(!borne.is_empty(), "seed {seed}: every axis contradicted");
+    let checks = run(&bump, seed, &auto).interpolation;
+    for &a in &borne {
+        let predict::AxisResolution::AtPositions { interpolation_scale: scale, .. } = back.resolution[a.index()] else {
+            unreachable!()
+        };
+        let check = checks.iter().find(|c| c.axis == a).expect("the axis was checked");
+        assert_eq!(scale, check.ratio().max(1.0), "{a:?}: the file keeps the check's ratio (never below 1)");
+        let q = stops(a);
+        let mut between = at_stops;
+        between[a.index()] = 0.5 * (q[q.len() / 2] + q[q.len() / 2 + 1]);
+        let (scaled, fit) =
+            (predict::predict(&back.model, &unc, &between, &p), predict::predict(&back.model, &fit_only, &between, &p));
+        assert!((scaled.cov - fit.cov * scale).norm() <= 1e-12 * fit.cov.norm(), "{a:?}: {scaled:?} {fit:?}");
+        let at = predict::predict(&back.model, &unc, &at_stops, &p);
+        assert_eq!(at.cov, predict::predict(&back.model, &fit_only, &at_stops, &p).cov, "at the stops");
+        let f = volcal::ErrorFunction::from_index(a.index() * 6);
+        let (s1, s0) = (
+            predict::function_sigma(&back.model, &unc, f, between[a.index()]),
+            predict::function_sigma(&back.model, &fit_only, f, between[a.index()]),
+        );
+        assert!((s1 - s0 * scale.sqrt()).abs() <= 1e-12 * s0, "{}: {s1} vs {s0} x sqrt({scale})", f.name());
+    }
 }
 
 /// The dense tracer's 21 stops per edge determine 18 intervals: an axis whose refinement
