@@ -108,9 +108,13 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
     let centre = nodes.default_point(&travel);
     // A refusal says what would be determined: the reference point at a measured position,
     // nodes at the measured positions.
+    // The tables `--nodes measured` would write, when they differ from these (an axis is
+    // contradicted and the nodes are even): a refusal asks whether they would be determined,
+    // and is not computed twice where they are the same.
+    let measured = Nodes::at_measured(step, &loaded.resolution);
+    let other = (measured != nodes).then_some(&measured);
     let determined = |point: &Point3<f64>, functions: bool| -> Result<()> {
         compensation::require_determined(model, &unc, &nodes, point, &p, functions).map_err(|e| {
-            let measured = Nodes::at_measured(step, &loaded.resolution);
             let at_stop = measured.default_point(&travel);
             let mut hints = Vec::new();
             if !functions && unc.leaves_open_at(point) {
@@ -119,8 +123,7 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
                     point.x, point.y, point.z, at_stop.x, at_stop.y, at_stop.z
                 ));
             }
-            let fine = compensation::require_determined(model, &unc, &measured, &at_stop, &p, functions).is_ok();
-            if fine && !nodes.any_measured() {
+            if other.is_some_and(|m| compensation::require_determined(model, &unc, m, &at_stop, &p, functions).is_ok()) {
                 hints.push(MEASURED_NODES_HINT.to_string());
             }
             hints.into_iter().fold(e, |e, h| anyhow::anyhow!("{e:#}; {h}"))
@@ -221,8 +224,8 @@ pub fn export_cmd(model_path: &Path, out: &Path, opts: &ExportOptions) -> Result
         }
         Format::Grid => {
             let pts = compensation::grid(model, &unc, &nodes, &p).map_err(|e| {
-                match compensation::grid(model, &unc, &Nodes::at_measured(step, &loaded.resolution), &p) {
-                    Ok(_) if !nodes.any_measured() => anyhow::anyhow!("{e:#}; {MEASURED_NODES_HINT}"),
+                match other.map(|m| compensation::grid(model, &unc, m, &p)) {
+                    Some(Ok(_)) => anyhow::anyhow!("{e:#}; {MEASURED_NODES_HINT}"),
                     _ => e,
                 }
             })?;
