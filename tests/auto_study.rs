@@ -144,6 +144,10 @@ pub struct Outcome {
     /// The noise variance factor REML took (1: the stated noise).
     pub noise_scale: f64,
     pub auto_s: f64,
+    /// The map's 95 % simultaneous band ([`volcal::band`]): its factor `k`, and whether every
+    /// error component where the model gives a number lies within `k` standard uncertainties.
+    pub band_k: f64,
+    pub within_band: bool,
 }
 
 /// The case's campaign for `seed` (its plans on one machine carrying the truth), and the truth.
@@ -213,7 +217,18 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     let (mut a2r, mut p2r, mut nr) = (0.0, 0.0, 0usize);
     let (mut max_z, mut over_3, mut values, mut undetermined, mut points) = (0.0f64, 0, 0, 0, 0);
     let (mut max_zi, mut over_3i, mut values_i) = (0.0f64, 0, 0);
-    for x in predict::grid(&travel, 0.1) {
+    let grid = predict::grid(&travel, 0.1);
+    let band = volcal::band::simultaneous_band(
+        &sol.model,
+        &unc,
+        &grid,
+        &offsets,
+        volcal::band::BAND_LEVEL,
+        volcal::band::BAND_DRAWS,
+        0,
+    );
+    let band_k = band.map_or(f64::NAN, |b| b.k);
+    for &x in &grid {
         for p in &offsets {
             points += 1;
             let pe = predict::predict(&sol.model, &unc, &x, p);
@@ -322,6 +337,8 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         edf: sol.smoothing.as_ref().map_or(0.0, |s| s.edf_total),
         noise_scale: sol.smoothing.as_ref().map_or(1.0, |s| s.noise_scale),
         auto_s,
+        band_k,
+        within_band: max_z.max(max_zi) <= band_k,
     }
 }
 

@@ -3,6 +3,7 @@
 
 use nalgebra::Vector3;
 use std::fmt::Write;
+use volcal::band::{simultaneous_band, BAND_DRAWS, BAND_LEVEL};
 use volcal::predict::{self, function_range, function_sigma, Extremum, Uncertainty};
 use volcal::{Axis, ErrorFunction, ErrorModel, Motion, Squareness};
 
@@ -68,9 +69,13 @@ pub fn functions_table(model: &ErrorModel, unc: &Uncertainty<'_>) -> String {
 }
 
 /// The largest volumetric error over the travel for each probe offset, as text: among the
-/// points where the data determine it, with how much of the volume that is.
+/// points where the data determine it, with how much of the volume that is; then the map's
+/// simultaneous band over the same grid ([`volcal::band`]), which is what a largest error found
+/// by searching the map is known to: its expanded uncertainty beside the one value's U95.
 pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vector3<f64>]) -> (String, Vec<Extremum>) {
     let step = volcal::Axis::ALL.iter().map(|&a| model.layout.travel.length(a)).fold(0.0, f64::max) / 20.0;
+    let grid = predict::grid(&model.layout.travel, step);
+    let band = simultaneous_band(model, unc, &grid, offsets, BAND_LEVEL, BAND_DRAWS, 0);
     let mut out = String::new();
     let mut ext = Vec::new();
     for p in offsets {
@@ -86,9 +91,12 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
                 what_to_measure(model, unc, p)
             );
         } else {
+            let over_map = band
+                .map(|b| format!("; {:.2} um over the map as a whole", e.at.u95() / predict::COVERAGE_K * b.k * 1e6))
+                .unwrap_or_default();
             let _ = writeln!(
                 out,
-                "Max volumetric error {:.2} um (U95 {:.2} um) at ({:.3}, {:.3}, {:.3}) m, probe offset ({:.3}, {:.3}, {:.3}) m",
+                "Max volumetric error {:.2} um (U95 {:.2} um{over_map}) at ({:.3}, {:.3}, {:.3}) m, probe offset ({:.3}, {:.3}, {:.3}) m",
                 e.magnitude_m * 1e6,
                 e.at.u95() * 1e6,
                 x.x,
@@ -109,6 +117,18 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
             }
         }
         ext.push(e);
+    }
+    if let Some(b) = band {
+        let _ = writeln!(
+            out,
+            "The map as a whole: with {:.0} % probability every error component of it ({} values on a {:.0} mm grid where the data determine them) lies within {:.2} standard uncertainties of the truth at once (its simultaneous band, from {} draws of the model's error), where one value read alone lies within {:.2}. A largest error found by searching the map is known to the band, not to one value's U95.",
+            b.level * 100.0,
+            b.values,
+            step * 1e3,
+            b.k,
+            b.draws,
+            predict::COVERAGE_K
+        );
     }
     (out, ext)
 }

@@ -21,6 +21,7 @@
 //!   maxima and compensation tables.
 
 pub mod axis;
+pub mod band;
 pub mod beam;
 pub mod campaign;
 pub mod diagnose;

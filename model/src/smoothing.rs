@@ -203,7 +203,7 @@ impl Penalty {
                         .collect()
                 }
                 None => match basis.roughness(PENALTY_ORDER) {
-                    Some(s) => vec![factor_psd(&s)],
+                    Some(s) => vec![factor_psd(&s, 1e-10)],
                     None => continue,
                 },
             };
@@ -374,13 +374,13 @@ pub(crate) fn block_columns(
 }
 
 /// `R` with `R^T R = s` for a positive semi-definite `s`, dropping its null space (eigenvalues
-/// below 1e-10 of the largest).
-fn factor_psd(s: &Mat<f64>) -> Mat<f64> {
+/// at or below `rel_tol` times the largest).
+pub(crate) fn factor_psd(s: &Mat<f64>, rel_tol: f64) -> Mat<f64> {
     let k = s.nrows();
     let Ok(eig) = s.self_adjoint_eigen(Side::Lower) else { return Mat::zeros(0, k) };
     let lam: Vec<f64> = (0..k).map(|i| eig.S().column_vector()[i]).collect();
     let lmax = lam.iter().cloned().fold(0.0, f64::max);
-    let keep: Vec<usize> = (0..k).filter(|&i| lam[i] > 1e-10 * lmax).collect();
+    let keep: Vec<usize> = (0..k).filter(|&i| lam[i] > rel_tol * lmax).collect();
     let u = eig.U();
     Mat::from_fn(keep.len(), k, |r, j| lam[keep[r]].sqrt() * u[(j, keep[r])])
 }

@@ -73,6 +73,15 @@ fn main() {
             outcomes[0].edf
         );
         eprintln!("  actual / predicted at the points the readings resolve: {:.3}", s.mc_ratio_resolved);
+        let mut ks: Vec<f64> = outcomes.iter().map(|o| o.band_k).collect();
+        ks.sort_by(f64::total_cmp);
+        eprintln!(
+            "  whole map within its 95 % simultaneous band in {} of {} campaigns (k {:.2} to {:.2})",
+            outcomes.iter().filter(|o| o.within_band).count(),
+            outcomes.len(),
+            ks[0],
+            ks[ks.len() - 1]
+        );
         if outcomes.iter().any(|o| !o.interpolation.is_empty()) {
             // The campaigns whose interpolation the readings contradict on some axis, and the rest.
             let (told, quiet): (Vec<Outcome>, Vec<Outcome>) =

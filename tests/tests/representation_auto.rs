@@ -7,7 +7,7 @@
 
 use nalgebra::Vector3;
 use volcal::flexibility::Auto;
-use volcal::predict;
+use volcal::{band, predict};
 use volcal::{gauge, ErrorModel};
 use volcal_formats::machine::Machine;
 use volcal_formats::model_file::Provenance;
@@ -355,8 +355,9 @@ fn a_failed_refinement_is_tested_again_after_another_axis_is_refined() {
 /// truth under a U95 of a few um. Now, over six campaigns, the map's error is what its
 /// uncertainty says (actual / predicted RMS within 25 %), no number is far outside its
 /// uncertainty (|error| < 5 sigma: a calibrated Gaussian exceeds that nowhere in a map of this
-/// size but once in thousands of campaigns; exceeding 4 happens in a few percent), and the
-/// representation of 12 intervals, still accepted when asked for, reports as not determined
+/// size but once in thousands of campaigns; exceeding 4 happens in a few percent), the whole
+/// map lies within its reported 95 % simultaneous band ([`volcal::band`]) in at least five of
+/// the six, and the representation of 12 intervals, still accepted when asked for, reports as not determined
 /// what its coefficients between the positions leave open.
 #[test]
 fn the_tracer_case_gives_a_map_within_its_uncertainty() {
@@ -364,7 +365,7 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
     let auto = Machine::parse(two_lines).unwrap();
     let twelve = Machine::parse(&format!("{two_lines}representation: {{kind: bspline, intervals: 12}}\n")).unwrap();
     let p = Vector3::zeros();
-    let (mut a2, mut p2) = (0.0, 0.0);
+    let (mut a2, mut p2, mut within_band) = (0.0, 0.0, 0);
     for seed in 2611..2617 {
         let truth = draw(Family::PolySine, &auto.layout.topology, auto.layout.travel, seed);
         let mut cfg = sim_config(&auto, Plan::paper_tracer(), seed);
@@ -386,7 +387,10 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
         let sol = &solved.solution;
         let unc = sol.uncertainty();
         let (mut worst, mut worst_i, mut n, mut interpolated, mut e2, mut v2) = (0.0f64, 0.0f64, 0, 0, 0.0, 0.0);
-        for x in predict::grid(&auto.layout.travel, 0.035) {
+        let grid = predict::grid(&auto.layout.travel, 0.035);
+        let band = band::simultaneous_band(&sol.model, &unc, &grid, &[p], band::BAND_LEVEL, band::BAND_DRAWS, 0)
+            .expect("a band over the map");
+        for &x in &grid {
             let pe = predict::predict(&sol.model, &unc, &x, &p);
             assert!(pe.is_determined(), "at {x:?}: the tracer determines the map at its own offset");
             let d = sol.model.error(&x, &p) - t.error(&x, &p);
@@ -407,10 +411,12 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
             n += 1;
         }
         eprintln!(
-            "seed {seed}: {interpolated} of {n} grid points between the tracer's stops; map error RMS {:.3} um, predicted {:.3} um; largest |error| / sigma {worst:.2} at the stops, {worst_i:.2} between them",
+            "seed {seed}: {interpolated} of {n} grid points between the tracer's stops; map error RMS {:.3} um, predicted {:.3} um; largest |error| / sigma {worst:.2} at the stops, {worst_i:.2} between them; the map's 95 % simultaneous band {:.2} sigma",
             (e2 / n as f64).sqrt() * 1e6,
-            (v2 / n as f64).sqrt() * 1e6
+            (v2 / n as f64).sqrt() * 1e6,
+            band.k
         );
+        within_band += (worst.max(worst_i) <= band.k) as usize;
         if seed == 2611 {
             for s in &solved.file.representation_choice.as_ref().unwrap().statements {
                 eprintln!("  {s}");
@@ -448,6 +454,9 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
         assert!(worst < 5.0, "a number with an uncertainty that does not cover it: {worst}");
     }
     let ratio = (a2 / p2).sqrt();
-    eprintln!("six campaigns: actual / predicted map RMS {ratio:.3}");
+    eprintln!("six campaigns: actual / predicted map RMS {ratio:.3}; the whole map within its simultaneous band in {within_band} of 6");
     assert!((0.75..=1.25).contains(&ratio), "actual / predicted map RMS {ratio}");
+    // Each map lies wholly within its 95 % band with probability 0.95: in at least five of six
+    // with probability 0.967 (a bound fixed before the test was run).
+    assert!(within_band >= 5, "the whole map within its simultaneous band in {within_band} of 6 campaigns");
 }
