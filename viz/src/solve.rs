@@ -73,8 +73,20 @@ pub fn summary_markdown(obs: &Observations, solution: &Solution, map: &volumetri
         st.variance_factor,
         if solution.converged { "" } else { " — **not converged**" },
     );
+    // What a maximum found by searching the map is known to: the map's simultaneous band.
+    let over_map = map
+        .band
+        .map(|b| {
+            format!(
+                "; {:.1} µm over the map as a whole: with {:.0} % probability every value of the map lies within {:.2} σ of the truth at once",
+                m.at.u95() / volcal::predict::COVERAGE_K * b.k * 1e6,
+                b.level * 100.0,
+                b.k
+            )
+        })
+        .unwrap_or_default();
     let largest = format!(
-        "**Largest volumetric error** (probe offset {:.0}, {:.0}, {:.0} mm): **{:.1} µm** (U {:.1} µm, k=2) \
+        "**Largest volumetric error** (probe offset {:.0}, {:.0}, {:.0} mm): **{:.1} µm** (U {:.1} µm, k=2{over_map}) \
          at X {:.0} Y {:.0} Z {:.0} mm.",
         map.probe.x * 1e3,
         map.probe.y * 1e3,

@@ -8,6 +8,7 @@ use super::paths;
 use super::scene::{f32p, f32v};
 use crate::rerun::{RecordingStream, RecordingStreamResult};
 use nalgebra::{Point3, Vector3};
+use volcal::band::{simultaneous_band, SimultaneousBand, BAND_DRAWS, BAND_LEVEL};
 use volcal::predict::{self, Extremum, Uncertainty};
 use volcal::{Axis, ErrorModel};
 
@@ -26,6 +27,9 @@ pub struct MapInfo {
     /// Length of the scale bar, as an error, metres.
     pub scale_bar_m: f64,
     pub probe: Vector3<f64>,
+    /// The map's 95 % simultaneous band over the grid its maximum was searched on
+    /// ([`volcal::band`]): what that maximum is known to.
+    pub band: Option<SimultaneousBand>,
 }
 
 /// 1, 2 or 5 times a power of ten, at most `x` (x > 0).
@@ -59,6 +63,15 @@ pub fn log_volumetric_map(
         )?;
     }
     let max = predict::max_error(model, unc, probe, step / 2.0);
+    let band = simultaneous_band(
+        model,
+        unc,
+        &predict::grid(&travel, step / 2.0),
+        std::slice::from_ref(probe),
+        BAND_LEVEL,
+        BAND_DRAWS,
+        0,
+    );
     let emax = max.magnitude_m.max(1e-12);
     let scale = round_down_125(ARROW_FRACTION * shortest / emax);
     let scale_bar_m = round_down_125(emax / 2.0);
@@ -91,7 +104,7 @@ pub fn log_volumetric_map(
             .with_radii([crate::rerun::Radius::new_ui_points(3.0)])
             .with_labels([format!("scale: {} µm (arrows ×{})", fmt_um(scale_bar_m), scale)]),
     )?;
-    Ok(MapInfo { max, scale, scale_bar_m, probe: *probe })
+    Ok(MapInfo { max, scale, scale_bar_m, probe: *probe, band })
 }
 
 fn fmt_um(m: f64) -> String {
