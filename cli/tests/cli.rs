@@ -79,12 +79,18 @@ fn solve_predict_map_report_and_determinism() {
     let c = campaign(&d);
     let m1 = d.join("model1.json");
     let m2 = d.join("model2.json");
+    let mut bands = Vec::new();
     for m in [&m1, &m2] {
         let o = volcal(&["solve", c.to_str().unwrap(), "--machine", &machine(), "--out", m.to_str().unwrap()]);
         assert!(o.status.success(), "{}", text(&o));
         let t = text(&o);
         assert!(t.contains("EXX") && t.contains("Max volumetric error") && t.contains("um"), "{t}");
+        // The map's simultaneous band, and the largest error's uncertainty over the whole map.
+        assert!(t.contains("over the map as a whole"), "{t}");
+        bands.push(t.lines().find(|l| l.starts_with("The map as a whole")).expect("the band's line").to_string());
     }
+    // The band is drawn with a fixed seed: the same model gives the same statement.
+    assert_eq!(bands[0], bands[1]);
     // The same input gives a bit-identical model.
     assert_eq!(std::fs::read(&m1).unwrap(), std::fs::read(&m2).unwrap());
 
