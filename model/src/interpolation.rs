@@ -23,6 +23,12 @@
 //! the sparse tracer over a bump (seeds 1-20) and 14 of 60 on smooth truths, and would have
 //! contradicted no axis the sum does not: each of an axis's six functions carries its own bump,
 //! so what the interpolation misses is spread over the positions, not at one of them.
+//! For the same reason the variance scale between the positions is the axis's
+//! ([`crate::predict::AxisResolution`]), not the interval's: a scale per interval from the
+//! deletion statistics of the positions around it (its two ends, or four positions; an
+//! experiment, not kept) took the sparse tracer over a bump from 1.535 to 1.492 and 1.510
+//! actual / predicted map RMS, and smooth truths from 0.935 to 0.909 and 0.925 (seeds 1-20):
+//! little gain, and a local scale adds its own noise.
 
 use crate::axis::Axis;
 use crate::campaign::Observations;
