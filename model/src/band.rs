@@ -64,7 +64,7 @@ pub fn simultaneous_band(
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
     for x in points {
         for p in offsets {
-            if !predict(model, unc, x, p).is_determined() {
+            if !unc.determines_everywhere() && !predict(model, unc, x, p).is_determined() {
                 continue;
             }
             let s = model.layout.sensitivity(x, p);
