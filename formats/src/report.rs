@@ -92,7 +92,7 @@ pub fn max_error_lines(model: &ErrorModel, unc: &Uncertainty<'_>, offsets: &[Vec
             );
         } else {
             let over_map = band
-                .map(|b| format!("; {:.2} um over the map as a whole", e.at.u95() / predict::COVERAGE_K * b.k * 1e6))
+                .map(|b| format!("; {:.2} um over the map as a whole", b.expanded(&e.at) * 1e6))
                 .unwrap_or_default();
             let _ = writeln!(
                 out,

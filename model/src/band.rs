@@ -20,7 +20,7 @@
 //! gives the same `k`, bit for bit.
 
 use crate::halves::both;
-use crate::predict::{predict, propagate, Uncertainty};
+use crate::predict::{predict, propagate, PointError, Uncertainty, COVERAGE_K};
 use crate::smoothing::factor_psd;
 use crate::ErrorModel;
 use faer::Mat;
@@ -48,6 +48,15 @@ pub struct SimultaneousBand {
     /// the data determine the error.
     pub values: usize,
     pub draws: usize,
+}
+
+impl SimultaneousBand {
+    /// The expanded uncertainty over the map as a whole of the error at `at` (e.g. the map's
+    /// largest): `k` times its standard uncertainty along the least favourable direction, where
+    /// [`PointError::u95`] takes the one value's 2. Infinite where the data do not determine it.
+    pub fn expanded(&self, at: &PointError) -> f64 {
+        at.u95() / COVERAGE_K * self.k
+    }
 }
 
 /// The simultaneous band at `level` of the volumetric error at `points` for each of `offsets`

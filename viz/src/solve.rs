@@ -79,7 +79,7 @@ pub fn summary_markdown(obs: &Observations, solution: &Solution, map: &volumetri
         .map(|b| {
             format!(
                 "; {:.1} µm over the map as a whole: with {:.0} % probability every value of the map lies within {:.2} σ of the truth at once",
-                m.at.u95() / volcal::predict::COVERAGE_K * b.k * 1e6,
+                b.expanded(&m.at) * 1e6,
                 b.level * 100.0,
                 b.k
             )
