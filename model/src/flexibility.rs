@@ -60,7 +60,7 @@ pub enum KnotBound {
 }
 
 /// One refinement test of an axis: would doubling its knots explain the readings better than
-/// chance? (Score test of the finer basis against the smoothed fit, [`Fit::score`].)
+/// chance? (Score test of the finer basis against the smoothed fit, [`crate::estimator::Fit::score`].)
 #[derive(Clone, Debug, PartialEq)]
 pub struct RefinementTest {
     pub from: usize,
@@ -227,7 +227,7 @@ pub fn auto_layout(
 /// Knot intervals of an axis whose readings' positions determine at most `most`: half as many
 /// again, up to `auto.max_intervals`, the roughness prior determining the coefficients the
 /// positions leave open. From the start where `most` is below `auto.start_intervals`, and for
-/// an axis whose refinement reaches `most` ([`widen_at_bound`]).
+/// an axis whose refinement reaches `most` (`widen_at_bound`).
 ///
 /// Why more than the positions determine: a cubic B-spline with as many coefficients as
 /// positions is fixed by its values there, so between two positions it has no freedom left,
@@ -302,16 +302,16 @@ pub const REFINE_P: f64 = 1e-3;
 /// Solves `obs` with `representation: auto`: starting from [`auto_layout`], the smoothing by
 /// REML; then, per axis whose knots are not yet at their bound, a score test of the doubled
 /// knots against that fit (the finer B-spline's extra detail as an extension of the model,
-/// [`Fit::score`]); axes where the readings ask for finer detail (p < [`REFINE_P`]) are refined
+/// [`crate::estimator::Fit::score`]); axes where the readings ask for finer detail (p < [`REFINE_P`]) are refined
 /// and the campaign solved again, REML starting from the smoothing found. An axis whose test
 /// failed is tested again after another axis was refined: the detail the coarse knots of one
 /// axis could not fit inflates the residual against which every axis is tested, and part of it
 /// aliases onto the others. An axis refined up to what its positions determine then goes half
-/// as far again ([`widen_at_bound`]). `opts` carries the gauge, noise and the rest; its
+/// as far again (`widen_at_bound`). `opts` carries the gauge, noise and the rest; its
 /// smoothing is replaced.
 ///
 /// Axes left bounded by their positions then have their interpolation checked against the
-/// readings ([`check_interpolation`]): the variance of a prediction between the positions is
+/// readings (`check_interpolation`): the variance of a prediction between the positions is
 /// scaled up by what leaving each position out showed ([`AxisResolution::with_interpolation_scale`]),
 /// and where the readings contradict the interpolation, the solution's resolution of that axis
 /// says so ([`AxisResolution::contradicted`]): predictions between its positions are then not

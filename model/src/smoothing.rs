@@ -14,7 +14,7 @@
 //! open between the readings, which is why it covers the truth where a representation error
 //! would otherwise hide (Nychka 1988: across-the-function coverage of the Bayesian intervals).
 //! To it is added the uncertainty of the smoothing parameters themselves
-//! ([`lambda_covariance`]), and no function is made stiffer than [`DETAIL_FLOOR`]: both matter
+//! (`lambda_covariance`), and no function is made stiffer than [`DETAIL_FLOOR`]: both matter
 //! where the readings say little about a function's smoothness.
 //!
 //! REML works on the quadratic model of the fit around the current estimate, in the reduced
@@ -26,7 +26,7 @@
 //! with `rho = log lambda` and `r_g` the rank of penalty `g` on that subspace, is minimised by
 //! Newton's method with exact gradient and Hessian (Wood 2011, appendix), in a few iterations.
 //! Where the penalised fit's residuals exceed the stated noise, the noise scale `phi` is
-//! profiled out of `V` (`chi2 + pen` divided by `phi`, plus `(n - M_p) log phi`: [`Scale`]).
+//! profiled out of `V` (`chi2 + pen` divided by `phi`, plus `(n - M_p) log phi`: `Scale`).
 //! Functions the data determine only together (e.g. a straightness and a rotation through one
 //! probe offset) share one smoothing parameter, since the data cannot tell their curvatures apart.
 

@@ -693,7 +693,7 @@ fn dominant_line(obs: &Observations, sol: &Solution) -> Option<usize> {
     (*e >= total / 3.0).then_some(g)
 }
 
-/// The SI unit of a found effect's parameter, from its name (the names [`describe`] and the
+/// The SI unit of a found effect's parameter, from its name (the names `describe` and the
 /// catalogue give carry their unit as a suffix): `m`, `s`, `rad`, `m/s`, `1/K`, `ppm`, `index`
 /// (a station, beam, point or axis number) or `1` (dimensionless: a fraction, a relative scale).
 /// Nonrigid coupling terms (`eX:P1(x)P1(y)`) are lengths.
