@@ -121,6 +121,9 @@ pub struct Outcome {
     pub auto_rms_m: f64,
     pub oracle_rms_m: f64,
     pub predicted_rms_m: f64,
+    /// Map error of the oracle that knows the family but must find where its features lie
+    /// ([`Oracle::located`]), at the same points.
+    pub located_rms_m: f64,
     /// The same two at the points where the readings resolve the map (not interpolated
     /// between measured positions; all points where no axis is bounded by its positions).
     pub auto_rms_resolved_m: f64,
@@ -200,6 +203,10 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     let refs: [&dyn volcal::estimator::Effect; 1] = [&oracle];
     let so = solve(&oracle_layout, obs, &plain, &refs).expect("oracle solve");
     let oc: Vec<f64> = so.effects[0].1.iter().map(|(_, v, _)| *v).collect();
+    let located = Oracle::located(truth, g, &oracle_layout);
+    let refs: [&dyn volcal::estimator::Effect; 1] = [&located];
+    let sl = solve(&oracle_layout, obs, &plain, &refs).expect("located oracle solve");
+    let lc: Vec<f64> = sl.effects[0].1.iter().map(|(_, v, _)| *v).collect();
 
     let aligned =
         ErrorModel { layout: truth.model.layout.clone(), u: gauge::align(&truth.model.layout, g, &truth.model.u) };
@@ -213,7 +220,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         v
     };
     let unc = sol.uncertainty();
-    let (mut a2, mut o2, mut p2, mut n) = (0.0, 0.0, 0.0, 0usize);
+    let (mut a2, mut o2, mut l2, mut p2, mut n) = (0.0, 0.0, 0.0, 0.0, 0usize);
     let (mut a2r, mut p2r, mut nr) = (0.0, 0.0, 0usize);
     let (mut max_z, mut over_3, mut values, mut undetermined, mut points) = (0.0f64, 0, 0, 0, 0);
     let (mut max_zi, mut over_3i, mut values_i) = (0.0f64, 0, 0);
@@ -239,6 +246,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
             let t = aligned.error(&x, p);
             let d = sol.model.error(&x, p) - t;
             let d_o = oracle.error(&so.model, &oc, &x, p) - t;
+            let d_l = located.error(&sl.model, &lc, &x, p) - t;
             for k in 0..3 {
                 // A component fixed by the gauge (the datum at its origin) has no variance and
                 // no error: it is not a test of the uncertainty.
@@ -259,6 +267,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
             }
             a2 += d.norm_squared();
             o2 += d_o.norm_squared();
+            l2 += d_l.norm_squared();
             p2 += pe.cov.trace();
             n += 1;
             if !pe.interpolated {
@@ -321,6 +330,7 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     Outcome {
         auto_rms_m: (a2 / n).sqrt(),
         oracle_rms_m: (o2 / n).sqrt(),
+        located_rms_m: (l2 / n).sqrt(),
         predicted_rms_m: (p2 / n).sqrt(),
         auto_rms_resolved_m: (a2r / nr).sqrt(),
         predicted_rms_resolved_m: (p2r / nr).sqrt(),
@@ -348,6 +358,10 @@ pub struct Summary {
     pub seeds: usize,
     /// RMS over seeds of `auto`'s map error divided by the oracle's.
     pub oracle_ratio: f64,
+    /// The same divided by the located oracle's ([`Outcome::located_rms_m`]), and the located
+    /// oracle's divided by the oracle's: what not knowing where the features lie costs at best.
+    pub located_ratio: f64,
+    pub located_over_oracle: f64,
     /// RMS over seeds of the actual map error divided by that of the predicted uncertainty.
     pub mc_ratio: f64,
     /// 95 % interval of `mc_ratio` from the seeds alone (percentile bootstrap over the seeds,
@@ -378,6 +392,8 @@ pub fn summarise(outcomes: &[Outcome]) -> Summary {
     Summary {
         seeds: outcomes.len(),
         oracle_ratio: a / o,
+        located_ratio: a / ms(&|o| o.located_rms_m),
+        located_over_oracle: ms(&|o| o.located_rms_m) / o,
         mc_ratio: a / p,
         mc_ratio_95: bootstrap_95(outcomes, |o| (o.auto_rms_m.powi(2), o.predicted_rms_m.powi(2))),
         mc_ratio_resolved: ms(&|o| o.auto_rms_resolved_m) / ms(&|o| o.predicted_rms_resolved_m),

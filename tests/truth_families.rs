@@ -14,6 +14,15 @@
 //! that the oracle's estimate lies in the same gauge as every other estimate and as the aligned
 //! truth. Its map error is what the readings allow when the representation is perfect: the
 //! information limit against which `representation: auto` is measured.
+//!
+//! That oracle is told more than the family: where each bump lies, how wide it is, where the
+//! piecewise cubic's breakpoints are, a sinusoid's period. [`Oracle::located`] is told the
+//! family only and must find those places from the readings: nonlinear least squares in the
+//! family, linearised at the truth (the derivatives of each drawn shape with respect to its
+//! features' places as further parameters), so its map error is, to first order, the least
+//! that an estimator not told where the features lie can reach (the Cramer-Rao bound of the
+//! family with those places unknown). It separates what `auto` loses to not knowing the
+//! places, which no estimator can avoid, from what it loses to its own representation.
 
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
@@ -68,6 +77,12 @@ pub struct FamilyTruth {
     pub family: Family,
     pub model: ErrorModel,
     pub basis: Vec<(ErrorFunction, Vec<Shape>)>,
+    /// Per function, the derivatives of its drawn shape with respect to where its features lie
+    /// (a bump's centre and width, the breakpoints of a piecewise cubic, a sinusoid's period):
+    /// with them beside [`FamilyTruth::basis`], the oracle is the estimator that knows the
+    /// family but must find its features from the readings, linearised at the truth
+    /// ([`Oracle::located`]). Empty for the paper's tables, whose nodes are the table's.
+    pub located: Vec<(ErrorFunction, Vec<Shape>)>,
 }
 
 /// Node count of the fine truth tables: 0.5 mm spacing.
@@ -144,7 +159,7 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
                 (f, (0..n).map(|i| hat(i, n, lo, hi)).collect())
             })
             .collect();
-        return FamilyTruth { family, model, basis };
+        return FamilyTruth { family, model, basis, located: Vec::new() };
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4641_4d49_4c59);
     let reprs: [Representation; 18] = std::array::from_fn(|i| {
@@ -153,11 +168,13 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
     });
     let mut model = ErrorModel::zero(ModelLayout::new(topology.clone(), travel, reprs));
     let mut basis = Vec::new();
+    let mut located = Vec::new();
     for f in ErrorFunction::all() {
         let [lo, hi] = travel.range(f.axis);
         let len = hi - lo;
         let mut shapes: Vec<Shape> = Vec::new();
         let mut coeffs: Vec<f64> = Vec::new();
+        let mut moves: Vec<Shape> = Vec::new();
         let normal = |rng: &mut ChaCha8Rng| -> f64 { StandardNormal.sample(rng) };
         match family {
             Family::PolySine => {
@@ -171,8 +188,11 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
                     let w = 2.0 * std::f64::consts::PI / period;
                     shapes.push(Arc::new(move |q| (w * (q - lo)).sin()));
                     shapes.push(Arc::new(move |q| (w * (q - lo)).cos()));
-                    coeffs.push(0.5 * normal(&mut rng));
-                    coeffs.push(0.5 * normal(&mut rng));
+                    let (a, b) = (0.5 * normal(&mut rng), 0.5 * normal(&mut rng));
+                    coeffs.push(a);
+                    coeffs.push(b);
+                    // d/dw of a sin(w (q - lo)) + b cos(w (q - lo)): the period.
+                    moves.push(Arc::new(move |q| (q - lo) * (a * (w * (q - lo)).cos() - b * (w * (q - lo)).sin())));
                 }
             }
             Family::PiecewiseBump => {
@@ -193,6 +213,23 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
                 shapes.push(Arc::new(move |q| (-0.5 * ((q - centre) / width).powi(2)).exp()));
                 let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
                 coeffs.push(sign * 0.6);
+                // The bump's centre and width, and the two inner breakpoints with the values
+                // and slopes there held (central differences of the Hermite interpolant).
+                let gauss = move |q: f64| (-0.5 * ((q - centre) / width).powi(2)).exp();
+                moves.push(Arc::new(move |q| gauss(q) * (q - centre) / (width * width)));
+                moves.push(Arc::new(move |q| gauss(q) * (q - centre).powi(2) / width.powi(3)));
+                let hermite: Vec<f64> = coeffs[..2 * b.len()].to_vec();
+                for k in 1..b.len() - 1 {
+                    let d = 1e-6 * len;
+                    let (mut up, mut down) = (b, b);
+                    up[k] += d;
+                    down[k] -= d;
+                    let (hu, hd) = (hermite_basis(&up), hermite_basis(&down));
+                    let c = hermite.clone();
+                    moves.push(Arc::new(move |q| {
+                        hu.iter().zip(hd.iter()).zip(&c).map(|((u, v), c)| c * (u(q) - v(q))).sum::<f64>() / (2.0 * d)
+                    }));
+                }
             }
             Family::PaperTables => unreachable!(),
         }
@@ -208,12 +245,13 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
             *ci = scale * shape(lo + len * i as f64 / (nodes - 1) as f64);
         }
         basis.push((f, shapes));
+        located.push((f, moves));
     }
     for s in Squareness::ALL {
         let v: f64 = StandardNormal.sample(&mut rng);
         model.set_squareness(s, 30e-6 * v.clamp(-2.0, 2.0) / 2.0);
     }
-    FamilyTruth { family, model, basis }
+    FamilyTruth { family, model, basis, located }
 }
 
 /// `phi` minus the straight line that makes it invisible to `gauge`'s functionals on
@@ -255,8 +293,31 @@ pub struct Oracle {
 impl Oracle {
     /// The oracle for `truth` in `gauge` on `layout`'s travel.
     pub fn new(truth: &FamilyTruth, gauge: Gauge, layout: &ModelLayout) -> Oracle {
+        Oracle::of(&truth.basis, gauge, layout)
+    }
+
+    /// The oracle that knows the truth's family but not where its features lie: the family's
+    /// basis and the derivatives of the drawn shapes with respect to their features' places
+    /// ([`FamilyTruth::located`]), i.e. nonlinear least squares in the family linearised at
+    /// the truth. Its error is the information limit (to first order, the Cramer-Rao bound) of an
+    /// estimator that is told the shape of the truth but must find its bump and breakpoints.
+    pub fn located(truth: &FamilyTruth, gauge: Gauge, layout: &ModelLayout) -> Oracle {
+        if truth.located.is_empty() {
+            // Nothing to find (the paper's tables): the same as the oracle.
+            return Oracle::of(&truth.basis, gauge, layout);
+        }
+        let both: Vec<(ErrorFunction, Vec<Shape>)> = truth
+            .basis
+            .iter()
+            .zip(&truth.located)
+            .map(|((f, s), (_, m))| (*f, s.iter().chain(m).cloned().collect()))
+            .collect();
+        Oracle::of(&both, gauge, layout)
+    }
+
+    fn of(basis: &[(ErrorFunction, Vec<Shape>)], gauge: Gauge, layout: &ModelLayout) -> Oracle {
         let mut terms = Vec::new();
-        for (f, shapes) in &truth.basis {
+        for (f, shapes) in basis {
             let [lo, hi] = layout.travel.range(f.axis);
             let (origin, far) = (axis_origin(layout, *f), axis_far_end(layout, *f));
             for s in shapes {

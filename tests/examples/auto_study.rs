@@ -71,6 +71,10 @@ fn main() {
             ks[ks.len() - 1],
             s.mean_s
         );
+        eprintln!(
+            "  the oracle that must find where the features lie: {:.3} times the oracle's map error; auto {:.3} times its",
+            s.located_over_oracle, s.located_ratio
+        );
         let k = &outcomes[0].knots;
         eprintln!(
             "  knots: {} / {} / {}; edf {:.1}",

@@ -31,9 +31,10 @@ fn every_case_is_honest_and_smooth_truths_are_near_the_oracle() {
         let share = s.over_3 as f64 / s.values.max(1) as f64;
         let within_band = outcomes.iter().filter(|o| o.within_band).count();
         eprintln!(
-            "{}: auto/oracle {:.3}, actual/predicted {:.3}, max |z| {:.2}, |z| > 3 in {:.2} % of {} values; interpolated: max |z| {:.2}, {} of {}; whole map within its simultaneous band in {within_band} of {}",
+            "{}: auto/oracle {:.3} (the oracle that must find where the features lie {:.3} times the oracle's), actual/predicted {:.3}, max |z| {:.2}, |z| > 3 in {:.2} % of {} values; interpolated: max |z| {:.2}, {} of {}; whole map within its simultaneous band in {within_band} of {}",
             case.label(),
             s.oracle_ratio,
+            s.located_over_oracle,
             s.mc_ratio,
             s.max_z,
             share * 100.0,
