@@ -50,7 +50,16 @@ use faer::{Mat, Side};
 /// Over a local bump (a C1 piecewise cubic, whose curvature jumps at its breakpoints, so that
 /// `int f'''^2` of the truth is unbounded) the second derivative's penalty does only a little
 /// better: dense FXYZ beams, seeds 1-20, 1.63 times the oracle's map error (1.65 with the
-/// quadratics exempted) instead of 1.74.
+/// quadratics exempted) instead of 1.74. Nor does a prior on the jumps of the third derivative
+/// between neighbouring knot intervals (differences of the rows of
+/// [`crate::repr::Basis::interval_roughness_rows`]: a piecewise cubic with few breaks is then
+/// smooth, a cubic free), alone or reweighted twice from the fit towards few jumps (an
+/// experiment, not kept): dense FXYZ beams over a bump, seeds 1-5, 1.517 times the oracle's map
+/// error became 1.566 and 1.560, where the local weights of [`PIECES`]' doc gave 1.390 (two
+/// reweighted fits, floor the mean; 1.397 and 1.443 with floors 0.1 and 0.01 of it, actual /
+/// predicted 0.94, 1.03, 1.15) at three to five times the solve time. The oracle told the
+/// family but not where its bump and breakpoints lie is 1.243 times the oracle there
+/// (`Oracle::located` in the tests; README).
 pub const PENALTY_ORDER: usize = 3;
 
 /// Pieces of each function's travel with a smoothing parameter of their own. The roughness of
