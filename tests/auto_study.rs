@@ -3,13 +3,13 @@
 //! (dense, sparse), solved by `representation: auto` and by the oracle of the truth's own basis.
 
 use crate::truth_families::{draw, Family, FamilyTruth, Oracle};
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 use std::time::Instant;
 use volcal::campaign::{prepare, Campaign};
 use volcal::flexibility::{solve_auto, Auto, AutoSolve, AxisKnots};
 use volcal::interpolation::InterpolationCheck;
 use volcal::predict;
-use volcal::{gauge, solve, ErrorModel, Gauge, SolveOptions, Topology, Travel};
+use volcal::{gauge, solve, ErrorModel, Gauge, ModelLayout, Observations, SolveOptions, Topology, Travel};
 use volcal_formats::machine::Machine;
 use volcal_formats::plan::sim_config;
 use volcal_sim::{simulate, Method, Plan};
@@ -199,19 +199,12 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
     }
 
     let oracle_layout = Oracle::layout(topology.clone(), travel);
-    let oracle = Oracle::new(truth, g, &oracle_layout);
-    let refs: [&dyn volcal::estimator::Effect; 1] = [&oracle];
-    let so = solve(&oracle_layout, obs, &plain, &refs).expect("oracle solve");
-    let oc: Vec<f64> = so.effects[0].1.iter().map(|(_, v, _)| *v).collect();
+    let oracle = solve_oracle(Oracle::new(truth, g, &oracle_layout), &oracle_layout, obs, &plain);
     // Where the family has no places to find (the paper's tables) the located oracle is the
     // oracle, and not solved again.
-    let located = (!truth.located.is_empty()).then(|| {
-        let located = Oracle::located(truth, g, &oracle_layout);
-        let refs: [&dyn volcal::estimator::Effect; 1] = [&located];
-        let sl = solve(&oracle_layout, obs, &plain, &refs).expect("located oracle solve");
-        let lc: Vec<f64> = sl.effects[0].1.iter().map(|(_, v, _)| *v).collect();
-        (located, sl.model, lc)
-    });
+    let located = truth
+        .has_places()
+        .then(|| solve_oracle(Oracle::located(truth, g, &oracle_layout), &oracle_layout, obs, &plain));
 
     let aligned =
         ErrorModel { layout: truth.model.layout.clone(), u: gauge::align(&truth.model.layout, g, &truth.model.u) };
@@ -250,8 +243,8 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
             }
             let t = aligned.error(&x, p);
             let d = sol.model.error(&x, p) - t;
-            let d_o = oracle.error(&so.model, &oc, &x, p) - t;
-            let d_l = located.as_ref().map_or(d_o, |(l, m, c)| l.error(m, c, &x, p) - t);
+            let d_o = oracle.error(&x, p) - t;
+            let d_l = located.as_ref().map_or(d_o, |l| l.error(&x, p) - t);
             for k in 0..3 {
                 // A component fixed by the gauge (the datum at its origin) has no variance and
                 // no error: it is not a test of the uncertainty.
@@ -355,6 +348,28 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
         band_k,
         within_band: max_z.max(max_zi) <= band_k,
     }
+}
+
+/// An oracle's estimate: its degree-1 model and its terms' coefficients.
+struct OracleFit {
+    oracle: Oracle,
+    model: ErrorModel,
+    coeffs: Vec<f64>,
+}
+
+impl OracleFit {
+    /// Its volumetric error at `x` with probe offset `p`.
+    fn error(&self, x: &Point3<f64>, p: &Vector3<f64>) -> Vector3<f64> {
+        self.oracle.error(&self.model, &self.coeffs, x, p)
+    }
+}
+
+/// Solves `oracle` (its terms as an effect beside the degree-1 `layout`) on `obs`.
+fn solve_oracle(oracle: Oracle, layout: &ModelLayout, obs: &Observations, opts: &SolveOptions) -> OracleFit {
+    let refs: [&dyn volcal::estimator::Effect; 1] = [&oracle];
+    let s = solve(layout, obs, opts, &refs).expect("oracle solve");
+    let coeffs = s.effects[0].1.iter().map(|(_, v, _)| *v).collect();
+    OracleFit { oracle, model: s.model, coeffs }
 }
 
 /// A case over seeds.

@@ -81,8 +81,16 @@ pub struct FamilyTruth {
     /// (a bump's centre and width, the breakpoints of a piecewise cubic, a sinusoid's period):
     /// with them beside [`FamilyTruth::basis`], the oracle is the estimator that knows the
     /// family but must find its features from the readings, linearised at the truth
-    /// ([`Oracle::located`]). Empty for the paper's tables, whose nodes are the table's.
+    /// ([`Oracle::located`]). None for the paper's tables, whose nodes are the table's.
     pub located: Vec<(ErrorFunction, Vec<Shape>)>,
+}
+
+impl FamilyTruth {
+    /// Whether the family has places to find ([`FamilyTruth::located`]): where it has none,
+    /// the located oracle is the oracle.
+    pub fn has_places(&self) -> bool {
+        self.located.iter().any(|(_, m)| !m.is_empty())
+    }
 }
 
 /// Node count of the fine truth tables: 0.5 mm spacing.
@@ -159,7 +167,8 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
                 (f, (0..n).map(|i| hat(i, n, lo, hi)).collect())
             })
             .collect();
-        return FamilyTruth { family, model, basis, located: Vec::new() };
+        let located = ErrorFunction::all().iter().map(|&f| (f, Vec::new())).collect();
+        return FamilyTruth { family, model, basis, located };
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4641_4d49_4c59);
     let reprs: [Representation; 18] = std::array::from_fn(|i| {
@@ -210,17 +219,17 @@ pub fn draw(family: Family, topology: &Topology, travel: Travel, seed: u64) -> F
                 }
                 let centre = lo + len * (0.15 + 0.7 * rng.random::<f64>());
                 let width = len * (0.03 + 0.03 * rng.random::<f64>());
-                shapes.push(Arc::new(move |q| (-0.5 * ((q - centre) / width).powi(2)).exp()));
+                let gauss = move |q: f64| (-0.5 * ((q - centre) / width).powi(2)).exp();
+                shapes.push(Arc::new(gauss));
                 let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
                 coeffs.push(sign * 0.6);
                 // The bump's centre and width, and the two inner breakpoints with the values
                 // and slopes there held (central differences of the Hermite interpolant).
-                let gauss = move |q: f64| (-0.5 * ((q - centre) / width).powi(2)).exp();
                 moves.push(Arc::new(move |q| gauss(q) * (q - centre) / (width * width)));
                 moves.push(Arc::new(move |q| gauss(q) * (q - centre).powi(2) / width.powi(3)));
                 let hermite: Vec<f64> = coeffs[..2 * b.len()].to_vec();
+                let d = 1e-6 * len;
                 for k in 1..b.len() - 1 {
-                    let d = 1e-6 * len;
                     let (mut up, mut down) = (b, b);
                     up[k] += d;
                     down[k] -= d;
@@ -302,10 +311,6 @@ impl Oracle {
     /// the truth. Its error is the information limit (to first order, the Cramer-Rao bound) of an
     /// estimator that is told the shape of the truth but must find its bump and breakpoints.
     pub fn located(truth: &FamilyTruth, gauge: Gauge, layout: &ModelLayout) -> Oracle {
-        if truth.located.is_empty() {
-            // Nothing to find (the paper's tables): the same as the oracle.
-            return Oracle::of(&truth.basis, gauge, layout);
-        }
         let both: Vec<(ErrorFunction, Vec<Shape>)> = truth
             .basis
             .iter()
