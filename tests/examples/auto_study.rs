@@ -31,9 +31,10 @@ fn main() {
         if std::env::var_os("AUTO_SEEDS").is_some() {
             for (s, o) in (first..).zip(&outcomes) {
                 eprintln!(
-                    "  seed {s}: auto {:.3} um, oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}{}",
+                    "  seed {s}: auto {:.3} um, oracle {:.3} um, located oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}{}",
                     o.auto_rms_m * 1e6,
                     o.oracle_rms_m * 1e6,
+                    o.located_rms_m * 1e6,
                     o.predicted_rms_m * 1e6,
                     o.max_z,
                     o.edf,
