@@ -81,7 +81,8 @@ pub struct FamilyTruth {
     /// (a bump's centre and width, the breakpoints of a piecewise cubic, a sinusoid's period):
     /// with them beside [`FamilyTruth::basis`], the oracle is the estimator that knows the
     /// family but must find its features from the readings, linearised at the truth
-    /// ([`Oracle::located`]). None for the paper's tables, whose nodes are the table's.
+    /// ([`Oracle::located`]). An empty list per function for the paper's tables, whose nodes are
+    /// the table's.
     pub located: Vec<(ErrorFunction, Vec<Shape>)>,
 }
 
