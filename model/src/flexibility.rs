@@ -21,7 +21,7 @@
 use crate::axis::{Axis, Travel};
 use crate::campaign::Observations;
 use crate::estimator::{fit, solve, Effect, ObsContext, Solution, SolveError, SolveOptions};
-use crate::functions::{ErrorFunction, Motion};
+use crate::functions::ErrorFunction;
 use crate::interpolation::{self, InterpolationCheck};
 use crate::model::ModelLayout;
 use crate::predict::AxisResolution;
@@ -674,11 +674,7 @@ impl Refinement {
             }
         });
         for (k, f) in self.functions.iter().enumerate() {
-            let v = match f.motion {
-                Motion::Translation => f.component.unit(),
-                Motion::Rotation => f.component.unit().cross(&h),
-            };
-            let d = ctx.direction.dot(&v);
+            let d = ctx.direction.dot(&f.unit_response(&h));
             for &(j, b) in &odd[..m] {
                 put(k * n + j, d * b);
             }

@@ -74,6 +74,16 @@ impl ErrorFunction {
         ErrorFunction::all().into_iter().find(|f| f.name().eq_ignore_ascii_case(name.trim()))
     }
 
+    /// Displacement of the probe per unit of this function's value: its component's unit
+    /// vector for a translation, that vector crossed with the lever arm `h` (from the axis's
+    /// carriage to the probe, [`crate::topology::Topology::lever_arm`]) for a rotation.
+    pub fn unit_response(self, h: &Vector3<f64>) -> Vector3<f64> {
+        match self.motion {
+            Motion::Translation => self.component.unit(),
+            Motion::Rotation => self.component.unit().cross(h),
+        }
+    }
+
     /// Positioning error of the axis (translation along itself).
     pub fn is_positioning(self) -> bool {
         self.motion == Motion::Translation && self.component == self.axis

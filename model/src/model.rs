@@ -7,7 +7,7 @@
 //! returns `de/du` sparsely, which is all the estimators need.
 
 use crate::axis::{Axis, Travel};
-use crate::functions::{ErrorFunction, Motion, Squareness};
+use crate::functions::{ErrorFunction, Squareness};
 use crate::repr::{Basis, Representation, SparseBasis};
 use crate::topology::Topology;
 use nalgebra::{Point3, Vector3};
@@ -87,10 +87,7 @@ impl ModelLayout {
                 if !shared {
                     self.bases[f.index()].eval_into(q, false, &mut b);
                 }
-                let dir = match f.motion {
-                    Motion::Translation => f.component.unit(),
-                    Motion::Rotation => f.component.unit().cross(&h),
-                };
+                let dir = f.unit_response(&h);
                 if dir == Vector3::zeros() {
                     continue;
                 }
