@@ -1046,7 +1046,15 @@ pub fn fit<'a>(
     // Smoothing parameters estimated from the readings carry uncertainty of their own.
     if reml_wanted {
         if let (Some(pen), Some(noise)) = (prob.penalty.as_ref(), reml_log.scale) {
-            let rp = ReducedPenalty::new(pen, n, &scale, &state.d[..layout.n_params], |x| z.zt(x));
+            let u0 = &state.d[..layout.n_params];
+            // Ranges rescale and may constrain anew after the last round: reduce again there.
+            let rp = match reml_log.reduced.take().filter(|rp| !nonlinear && rp.fits(pen)) {
+                Some(mut rp) => {
+                    rp.moved_to(pen, n, &scale, u0, |x| z.zt(x));
+                    rp
+                }
+                None => ReducedPenalty::new(pen, n, &scale, u0, |x| z.zt(x)),
+            };
             if let Some(dc) = smoothing::lambda_covariance(&rp, &pen.lambda, factor.llt.L(), &reml_log.at_upper, noise)
             {
                 inverse += dc;
@@ -1171,6 +1179,9 @@ struct RemlLog {
     merged: bool,
     /// The noise scale of the last round.
     scale: Option<smoothing::Scale>,
+    /// The last round's penalties in reduced coordinates, for the covariance at the solution
+    /// when neither the reduction nor the column scale has changed since (beams).
+    reduced: Option<ReducedPenalty>,
 }
 
 /// One round of REML ([`smoothing::reml`]) on the quadratic model of the fit at `state` (data
@@ -1219,6 +1230,7 @@ fn reml_round(
         state.d[k] += ds[(k, 0)] / scale[k];
     }
     update_directions(prob, state);
+    log.reduced = Some(rp);
     log.iterations += res.iterations;
     log.converged = res.converged;
     log.at_upper = res.at_upper;

@@ -435,6 +435,21 @@ fn rank_of(x: &Mat<f64>) -> usize {
     lam.iter().filter(|&&l| l > 1e-9 * lmax && l > 0.0).count()
 }
 
+/// `Z^T D^-1 S_g u0` per group (all groups through `zt` at once).
+fn reduced_su(pen: &Penalty, n: usize, scale: &[f64], u0: &[f64], zt: impl Fn(&Mat<f64>) -> Mat<f64>) -> Vec<Mat<f64>> {
+    let ng = pen.n_groups();
+    let mut su = Mat::<f64>::zeros(n, ng);
+    for blk in &pen.blocks {
+        let k = blk.s.nrows();
+        for i in 0..k {
+            let v: f64 = (0..k).map(|j| blk.s[(i, j)] * u0[blk.offset + j]).sum();
+            su[(blk.offset + i, blk.group)] = v / scale[blk.offset + i];
+        }
+    }
+    let su = zt(&su);
+    (0..ng).map(|g| su.subcols(g, 1).to_owned()).collect()
+}
+
 /// The quadratic model of a fit around its current estimate `u0`, in reduced coordinates `y`
 /// (the step is `D^-1 Z y`): `chi2(y) = chi2_0 - 2 y' g + y' M_d y`.
 pub(crate) struct Quadratic<'a> {
@@ -509,7 +524,6 @@ impl ReducedPenalty {
         let ng = pen.n_groups();
         let mut bt = Vec::with_capacity(ng);
         let mut p = Vec::with_capacity(ng);
-        let mut h = Vec::with_capacity(ng);
         let mut rank = Vec::with_capacity(ng);
         let e0 = pen.energies(u0);
         // Every group's columns through `zt` at once, then split.
@@ -531,22 +545,25 @@ impl ReducedPenalty {
             p.push(Supported::of_factor(&b));
             bt.push(b);
         }
-        // S_g u0 per group, then D^-1 and Z^T (all groups at once).
-        let mut su = Mat::<f64>::zeros(n, ng);
-        for blk in &pen.blocks {
-            let k = blk.s.nrows();
-            for i in 0..k {
-                let v: f64 = (0..k).map(|j| blk.s[(i, j)] * u0[blk.offset + j]).sum();
-                su[(blk.offset + i, blk.group)] = v / scale[blk.offset + i];
-            }
-        }
-        let su = zt(&su);
-        h.extend((0..ng).map(|g| su.subcols(g, 1).to_owned()));
+        let h = reduced_su(pen, n, scale, u0, zt);
         ReducedPenalty { bt, p, h, e0, rank }
+    }
+
+    /// The same penalties about another `u0` (with the same `scale` and reduction `zt`): only
+    /// `h` and `e0` depend on it, the reduced factors (most of [`ReducedPenalty::new`]'s time)
+    /// do not.
+    pub fn moved_to(&mut self, pen: &Penalty, n: usize, scale: &[f64], u0: &[f64], zt: impl Fn(&Mat<f64>) -> Mat<f64>) {
+        self.e0 = pen.energies(u0);
+        self.h = reduced_su(pen, n, scale, u0, zt);
     }
 
     fn n_groups(&self) -> usize {
         self.p.len()
+    }
+
+    /// Whether this was reduced for `pen`'s groups (a merge since changes them).
+    pub fn fits(&self, pen: &Penalty) -> bool {
+        self.p.len() == pen.n_groups()
     }
 
     /// Groups whose penalised directions share a direction on the reduced subspace (a
