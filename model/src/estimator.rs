@@ -1048,7 +1048,7 @@ pub fn fit<'a>(
         if let (Some(pen), Some(noise)) = (prob.penalty.as_ref(), reml_log.scale) {
             let u0 = &state.d[..layout.n_params];
             // Ranges rescale and may constrain anew after the last round: reduce again there.
-            let rp = match reml_log.reduced.take().filter(|rp| !nonlinear && rp.fits(pen)) {
+            let rp = match reml_log.reduced.take().filter(|_| !nonlinear) {
                 Some(mut rp) => {
                     rp.moved_to(pen, n, &scale, u0, |x| z.zt(x));
                     rp

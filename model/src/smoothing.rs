@@ -525,7 +525,6 @@ impl ReducedPenalty {
         let mut bt = Vec::with_capacity(ng);
         let mut p = Vec::with_capacity(ng);
         let mut rank = Vec::with_capacity(ng);
-        let e0 = pen.energies(u0);
         // Every group's columns through `zt` at once, then split.
         let groups: Vec<Mat<f64>> = (0..ng).map(|g| pen.factor_columns(g, n, scale)).collect();
         let widths: Vec<usize> = groups.iter().map(|c| c.ncols()).collect();
@@ -545,25 +544,22 @@ impl ReducedPenalty {
             p.push(Supported::of_factor(&b));
             bt.push(b);
         }
-        let h = reduced_su(pen, n, scale, u0, zt);
-        ReducedPenalty { bt, p, h, e0, rank }
+        let mut rp = ReducedPenalty { bt, p, h: Vec::new(), e0: Vec::new(), rank };
+        rp.moved_to(pen, n, scale, u0, zt);
+        rp
     }
 
     /// The same penalties about another `u0` (with the same `scale` and reduction `zt`): only
     /// `h` and `e0` depend on it, the reduced factors (most of [`ReducedPenalty::new`]'s time)
     /// do not.
     pub fn moved_to(&mut self, pen: &Penalty, n: usize, scale: &[f64], u0: &[f64], zt: impl Fn(&Mat<f64>) -> Mat<f64>) {
+        debug_assert_eq!(self.bt.len(), pen.n_groups(), "reduced for other groups than `pen`'s");
         self.e0 = pen.energies(u0);
         self.h = reduced_su(pen, n, scale, u0, zt);
     }
 
     fn n_groups(&self) -> usize {
         self.p.len()
-    }
-
-    /// Whether this was reduced for `pen`'s groups (a merge since changes them).
-    pub fn fits(&self, pen: &Penalty) -> bool {
-        self.p.len() == pen.n_groups()
     }
 
     /// Groups whose penalised directions share a direction on the reduced subspace (a
