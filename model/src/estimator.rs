@@ -1047,8 +1047,7 @@ pub fn fit<'a>(
     if reml_wanted {
         if let (Some(pen), Some(noise)) = (prob.penalty.as_ref(), reml_log.scale) {
             let u0 = &state.d[..layout.n_params];
-            // Ranges rescale and may constrain anew after the last round: reduce again there.
-            let rp = match reml_log.reduced.take().filter(|_| !nonlinear) {
+            let rp = match reml_log.reduced.take() {
                 Some(mut rp) => {
                     rp.moved_to(pen, n, &scale, u0, |x| z.zt(x));
                     rp
@@ -1179,8 +1178,10 @@ struct RemlLog {
     merged: bool,
     /// The noise scale of the last round.
     scale: Option<smoothing::Scale>,
-    /// The last round's penalties in reduced coordinates, for the covariance at the solution
-    /// when neither the reduction nor the column scale has changed since (beams).
+    /// The last round's penalties in reduced coordinates, for the covariance at the solution;
+    /// none when the last round failed. The last round has the solution's reduction and column
+    /// scale (beams have one round; ranges constrain anew only before their later rounds), so
+    /// only the estimate they are taken about differs ([`ReducedPenalty::moved_to`]).
     reduced: Option<ReducedPenalty>,
 }
 
@@ -1198,6 +1199,7 @@ fn reml_round(
     scale: &[f64],
     log: &mut RemlLog,
 ) {
+    log.reduced = None;
     let n = prob.dims.n();
     let n_u = prob.dims.n_u;
     let n_obs = prob.active_readings();
