@@ -963,7 +963,13 @@ impl Derivatives {
 /// towards less smoothing than its curvature at the optimum says, which a first-order term
 /// does not follow; scaling it is no remedy (nothing in the readings says by how much), and
 /// taking in the groups held at the detail floor (their curvature there) moved the tables only
-/// to 1.218 (experiments, not kept).
+/// to 1.218 (experiments, not kept). Nor does the paper's second-order term, the smoothing
+/// parameters' effect on the posterior covariance itself (mgcv's `Vc2`: `sum_kl V_rho,kl D_k
+/// D_l^T` with `D_k` the derivative in `log lambda_k` of the posterior's square root `L^-T`;
+/// an experiment, not kept): its trace is 1.2 to 1.7 % of the posterior's, a tenth of the
+/// first-order term's, and on the same seeds the tables went 1.241 -> 1.234 (1.214 taken four
+/// times), smooth truths 0.828 -> 0.825, at 1.6 times the solve time (two `n^3` products per
+/// direction of `V_rho`).
 pub(crate) fn lambda_covariance(
     rp: &ReducedPenalty,
     lambda: &[f64],
