@@ -966,10 +966,10 @@ impl Derivatives {
 /// to 1.218 (experiments, not kept). Nor does the paper's second-order term, the smoothing
 /// parameters' effect on the posterior covariance itself (mgcv's `Vc2`: `sum_kl V_rho,kl D_k
 /// D_l^T` with `D_k` the derivative in `log lambda_k` of the posterior's square root `L^-T`;
-/// an experiment, not kept): its trace is 1.2 to 1.7 % of the posterior's, a tenth of the
-/// first-order term's, and on the same seeds the tables went 1.241 -> 1.234 (1.214 taken four
-/// times), smooth truths 0.828 -> 0.825, at 1.6 times the solve time (two `n^3` products per
-/// direction of `V_rho`).
+/// an experiment, not kept): its trace is 1.2 to 1.7 % of the posterior's and a tenth to a
+/// sixth of the first-order term's (the tables' fits of seeds 1-2), and on seeds 1-8 the tables
+/// went 1.241 -> 1.234 (1.214 taken four times), smooth truths 0.828 -> 0.825, at 1.6 to 1.7
+/// times the solve time (two `n^3` products per direction of `V_rho`).
 pub(crate) fn lambda_covariance(
     rp: &ReducedPenalty,
     lambda: &[f64],
