@@ -337,9 +337,10 @@ pub struct MeasuredPositions {
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub interpolation_contradicted: bool,
     /// How much larger the variance of the interpolation between the positions is than the
-    /// covariance states (the leave-one-position-out check's ratio where above 1): predictions
-    /// there have their covariance scaled by it. Absent (1) in files from before the scale,
-    /// where the axis was not checked and where the ratio is not above 1.
+    /// covariance states (what the leave-one-position-out checks show, pooled over the axes
+    /// checked, where above 1: `volcal::interpolation::variance_scale`): predictions there have
+    /// their covariance scaled by it. Absent (1) in files from before the scale, where the axis
+    /// was not checked and where the factor is not above 1.
     #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
     pub interpolation_variance_scale: f64,
 }

@@ -164,7 +164,7 @@ pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
     if !scaled.is_empty() {
         let _ = writeln!(
             out,
-            "There its uncertainty is widened to what leaving each position out showed: the interpolation's variance times {} (the left-out readings' prediction error against the variance the fit stated for it).",
+            "There its uncertainty is widened to what leaving each position out showed: the interpolation's variance times {} (the left-out readings' prediction error beyond what the fit stated for it, put on the interpolation and pooled over the axes checked).",
             scaled.join(", ")
         );
     }

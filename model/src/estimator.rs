@@ -547,7 +547,7 @@ impl<'a> Fit<'a> {
     /// prior: a fit whose prior describes the data well gives `t` about the set's size (a
     /// chi-square), one that interpolates worse than its uncertainty says, more. `None` for a
     /// set whose readings the others do not predict at all (`I - H` singular).
-    pub fn deletion_statistics(&self, sets: &[Vec<usize>]) -> Vec<Option<f64>> {
+    pub fn deletion_statistics(&self, sets: &[Vec<usize>]) -> Vec<Option<Deletion>> {
         let p = &self.prob;
         let rows = self.rows.get_or_init(|| ModelRows::new(p, &self.state));
         let n = p.dims.n();
@@ -597,9 +597,10 @@ impl<'a> Fit<'a> {
                     f64::from(a == c) - 0.5 * (q[(a, c)] + q[(c, a)]) - origin
                 });
                 let e = Mat::from_fn(k, 1, |a, _| self.solution.residuals[set[a]] / p.sigma[set[a]]);
+                let leverage = k as f64 - (0..k).map(|a| i_h[(a, a)]).sum::<f64>();
                 let llt = i_h.llt(Side::Lower).ok()?;
                 let t = (e.transpose() * llt.solve(&e))[(0, 0)];
-                t.is_finite().then_some(t)
+                t.is_finite().then_some(Deletion { statistic: t, leverage })
             })
             .collect()
     }
@@ -636,6 +637,19 @@ impl<'a> Fit<'a> {
         let covariance = Mat::from_fn(k, k, |i, j| pinv[(i, j)] * factor);
         Score { delta_chi2, rank, estimate, covariance, information: schur, gradient: c.to_vec() }
     }
+}
+
+/// What leaving a set of readings out shows ([`Fit::deletion_statistics`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Deletion {
+    /// `e^T (I - H)^-1 e`: about the set's size when the fit's noise and prior describe it.
+    pub statistic: f64,
+    /// `tr H` over the set: the share of the statistic's expectation that comes from the fit
+    /// without the set, not from the readings' noise. By Woodbury, `(I - H)^-1 = I + P` with
+    /// `P` the whitened posterior covariance of the set's values from the fit without it, and
+    /// `tr((I - H) (I + F P)) = k + (F - 1) tr H`: where the posterior's variance is `F` times
+    /// the stated one, the statistic's expectation exceeds `k` by `(F - 1) tr H`.
+    pub leverage: f64,
 }
 
 /// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:

@@ -335,12 +335,12 @@ pub fn solve_auto(
     out.interpolation = check_interpolation(&out, &cx);
     // Between the positions of a checked axis the interpolation's variance is what leaving
     // each position out showed, where that is more than the fit states; where the readings
-    // contradict the interpolation the map there
-    // is not determined by the data: the interpolation is what the readings refute, and its
-    // uncertainty with it.
+    // contradict the interpolation the map there is not determined by the data: the
+    // interpolation is what the readings refute, and its uncertainty with it.
+    let scale = interpolation::variance_scale(&out.interpolation).max(1.0);
     for c in &out.interpolation {
         let r = &mut out.solution.resolution[c.axis.index()];
-        *r = std::mem::take(r).with_interpolation_scale(c.ratio().max(1.0));
+        *r = std::mem::take(r).with_interpolation_scale(scale);
         if c.contradicted() {
             *r = std::mem::take(r).contradicted();
             out.solution.warnings.push(c.statement());

@@ -35,14 +35,14 @@ pub enum AxisResolution {
         /// only at the positions themselves.
         contradicted: bool,
         /// How much larger the variance of the interpolation between the positions is than the
-        /// fit states: the leave-one-position-out check's ratio
-        /// ([`crate::interpolation::InterpolationCheck::ratio`]) where it is above 1, else 1
+        /// fit states: the factor the leave-one-position-out checks show, pooled over the axes
+        /// checked ([`crate::interpolation::variance_scale`]), where it is above 1, else 1
         /// (and 1 where the axis was not checked). The covariance of a prediction between the
         /// positions is scaled by it: the cross-validation estimate of the prior's variance,
         /// which stays right where the prior's shape is not the truth's (Bachoc 2013, *Cross
         /// validation and maximum likelihood estimations of hyper-parameters of Gaussian
         /// processes with model misspecification*), where REML's, a likelihood's, does not.
-        /// Never below 1: a ratio below one, from a few positions, is no evidence that the
+        /// Never below 1: a factor below one, from a few positions, is no evidence that the
         /// interpolation is better than the fit states, and a metrology tool does not narrow an
         /// uncertainty on it.
         interpolation_scale: f64,
@@ -58,7 +58,7 @@ impl AxisResolution {
     }
 
     /// The same, with the interpolation's variance between the positions scaled by `scale`
-    /// (the leave-one-position-out check's ratio; a resolution everywhere interpolates nothing).
+    /// (what the leave-one-position-out checks show; a resolution everywhere interpolates nothing).
     pub fn with_interpolation_scale(self, scale: f64) -> AxisResolution {
         match self {
             AxisResolution::AtPositions { positions, tolerance_m, contradicted, .. } => {
