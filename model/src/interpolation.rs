@@ -165,26 +165,28 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
     checks
 }
 
-/// The factor on the interpolation's variance that the left-out positions of a campaign's
-/// checked axes show, pooled over them: with the posterior's variance `F` times the one the fit
-/// states, each chi-square's expectation is `readings + (F - 1) leverage`
-/// ([`crate::estimator::Deletion`]), and the sums over the axes give `F`. It is the
-/// cross-validation estimate of the prior's variance, which stays right where the prior's shape
-/// is not the truth's, where REML's does not (Bachoc 2013). 1 without a check.
+/// The factor on the interpolation's variance that the left-out positions of a campaign's checked
+/// axes show, pooled over them: with the posterior's variance `F` times the one the fit states,
+/// each chi-square's expectation is `readings + (F - 1) leverage` ([`crate::estimator::Deletion`]),
+/// and the sums over the axes give `F`. It is the cross-validation estimate of the prior's
+/// variance, which stays right where the prior's shape is not the truth's, where REML's does not
+/// (Bachoc 2013). 1 without a check.
 ///
-/// The leverage, not the readings: the excess of the chi-square over its degrees of freedom is
-/// the interpolation's, not the noise's, and spread over all the readings (the check's
-/// [`InterpolationCheck::ratio`], the scale until stop 39) it understated the factor's excess
-/// over 1 about three times (the sparse tracer over a bump, seeds 1-20: the leverage is 15 to
-/// 39 % of the readings, median 31 %). Pooled, not per
-/// axis: one axis's estimate, from 9 positions, scatters from 0.01 to 1.8 on smooth truths, and
-/// taken only where above 1 it over-stated them. Sparse tracer, seeds 1-20, actual / predicted
-/// map RMS at the points given, the ratio per axis -> this factor per axis -> pooled: over a
-/// bump 1.397 -> 1.293 -> 1.240 (error components beyond 3 sigma between the stops 5.8 -> 3.2
-/// -> 2.5 %, largest 9.5 -> 8.0 -> 7.3; the whole map within its simultaneous band in 11 -> 12
-/// -> 14 of 20); polynomials with sinusoids 0.935 -> 0.901 -> 0.940; the paper's tables 1.024
-/// -> 0.956 -> 1.030. A campaign whose readings contradict one axis's interpolation widens the
-/// others' with it: the evidence that the prior misjudges the roughness is the campaign's.
+/// The leverage, not the readings: the excess of the chi-square over its degrees of freedom is the
+/// interpolation's, not the noise's, and spread over all the readings (the check's
+/// [`InterpolationCheck::ratio`], the scale until stop 39) it understated the factor's excess over
+/// 1 about three times (the sparse tracer over a bump, seeds 1-20: the leverage is 15 to 39 % of
+/// the readings, median 31 %). Pooled, not per axis: one axis's estimate, from 9 positions,
+/// scatters from 0.01 to 1.8 on smooth truths, and taken only where above 1 it over-stated them.
+/// Sparse tracer, seeds 1-20, actual / predicted map RMS at the points given, the ratio per axis ->
+/// this factor per axis -> pooled: over a bump 1.397 -> 1.293 -> 1.240 (error components beyond 3
+/// sigma between the stops 5.8 -> 3.2 -> 2.5 %, largest 9.5 -> 8.0 -> 7.3; the whole map within its
+/// simultaneous band in 11 -> 12 -> 14 of 20); polynomials with sinusoids 0.935 -> 0.901 -> 0.940;
+/// the paper's tables 1.024 -> 0.956 -> 1.030. On seeds 6001-6100, run once after the choice, the
+/// ratio -> pooled: over a bump 1.345 -> 1.150, smooth truths 0.929 -> 0.936, the tables 1.056 ->
+/// 1.063 (README, "The factor from the leverage"). A campaign whose readings contradict one axis's
+/// interpolation widens the others' with it: the evidence that the prior misjudges the roughness is
+/// the campaign's.
 pub fn variance_scale(checks: &[InterpolationCheck]) -> f64 {
     let excess: f64 = checks.iter().map(|c| c.chi2 - c.readings as f64).sum();
     let leverage: f64 = checks.iter().map(|c| c.leverage).sum();
