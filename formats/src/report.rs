@@ -147,7 +147,7 @@ pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
                 borne.push(said);
                 if let predict::AxisResolution::AtPositions { interpolation_scale: s, .. } = r {
                     if *s != 1.0 {
-                        scaled.push(format!("{} {s:.2}", a.letter()));
+                        scaled.push((a.letter(), *s));
                     }
                 }
             }
@@ -161,11 +161,18 @@ pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
             borne.join(", ")
         );
     }
-    if !scaled.is_empty() {
+    if let Some(&(_, first)) = scaled.first() {
+        // One factor pooled over the checked axes (a solve since the pooled factor); files
+        // written before it keep one per axis.
+        let factors = if scaled.iter().all(|&(_, s)| s == first) {
+            let axes: Vec<String> = scaled.iter().map(|(a, _)| a.to_string()).collect();
+            format!("{first:.2} along {}", axes.join(", "))
+        } else {
+            scaled.iter().map(|(a, s)| format!("{a} {s:.2}")).collect::<Vec<_>>().join(", ")
+        };
         let _ = writeln!(
             out,
-            "There its uncertainty is widened to what leaving each position out showed: the interpolation's variance times {} (the left-out readings' prediction error beyond what the fit stated for it, put on the interpolation and pooled over the axes checked).",
-            scaled.join(", ")
+            "There its uncertainty is widened to what leaving each position out showed: the interpolation's variance times {factors} (the left-out readings' prediction error beyond what the fit stated for it, put on the interpolation and pooled over the axes checked).",
         );
     }
     if !contradicted.is_empty() {
@@ -261,4 +268,28 @@ fn undetermined_functions(model: &ErrorModel, unc: &Uncertainty<'_>) -> Vec<Stri
             .map(|s| s.name().to_string()),
     );
     involved
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::Mat;
+    use predict::AxisResolution;
+
+    fn stated(resolution: &[AxisResolution; 3]) -> String {
+        let covariance = Mat::<f64>::zeros(0, 0);
+        let undetermined = Mat::<f64>::zeros(0, 0);
+        interpolation_line(&Uncertainty::new(&covariance, &undetermined).with_resolution(resolution))
+    }
+
+    #[test]
+    fn a_factor_pooled_over_the_axes_is_stated_once() {
+        let at = |s: f64| AxisResolution::at(vec![0.0, 0.1, 0.2]).with_interpolation_scale(s);
+        let pooled = stated(&[AxisResolution::Everywhere, at(1.4512), at(1.4512)]);
+        assert!(pooled.contains("variance times 1.45 along Y, Z ("), "{pooled}");
+        // A file written before the pooled factor keeps one ratio per axis.
+        let per_axis = stated(&[AxisResolution::Everywhere, at(1.12), at(1.24)]);
+        assert!(per_axis.contains("variance times Y 1.12, Z 1.24 ("), "{per_axis}");
+        assert!(!stated(&[AxisResolution::Everywhere, at(1.0), at(1.0)]).contains("widened"));
+    }
 }
