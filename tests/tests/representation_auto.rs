@@ -262,10 +262,8 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
             unreachable!()
         };
         assert!(checks.iter().any(|c| c.axis == a), "{a:?} was checked");
-        assert!(
-            (scale - pooled.max(1.0)).abs() <= 1e-12 * scale,
-            "{a:?}: the file keeps the campaign's pooled factor (never below 1): {scale} against {pooled}"
-        );
+        // Bit for bit: the model file's floats round-trip exactly (serde_json's `float_roundtrip`).
+        assert_eq!(scale, pooled.max(1.0), "{a:?}: the file keeps the campaign's pooled factor (never below 1)");
         let q = stops(a);
         let mut between = at_stops;
         between[a.index()] = 0.5 * (q[q.len() / 2] + q[q.len() / 2 + 1]);
