@@ -578,3 +578,35 @@ pub fn sha256_file(path: &Path) -> Result<String> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     Ok(format!("{:x}", Sha256::digest(&bytes)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::{Machine, DEMO_MACHINE};
+
+    /// A model file gives back, bit for bit, the coefficients, covariance and interpolation
+    /// factors it was written from: replaying a model years later must not move a number by
+    /// an ulp (serde_json's `float_roundtrip`; its default parser is best-effort).
+    #[test]
+    fn a_model_file_gives_back_its_numbers_bit_for_bit() {
+        let m = Machine::parse(DEMO_MACHINE).unwrap();
+        let cfg = crate::plan::sim_config(&m, volcal_sim::Plan::patent_example(), 7);
+        let out = volcal_sim::simulate(&cfg, &[], 7).unwrap();
+        let prep = volcal::campaign::prepare(&out.campaign, &m.layout.travel, &m.expansion).unwrap();
+        let mut sol = volcal::solve(&m.layout, &prep.obs, &m.solve_options(), &[]).unwrap();
+        // A factor with a full 17-digit mantissa, as the interpolation check writes them.
+        sol.resolution[1] = AxisResolution::at(vec![0.0, 0.1, 0.2, 0.3]).with_interpolation_scale(1.935531796686672);
+        let path = std::env::temp_dir().join(format!("volcal-roundtrip-{}.json", std::process::id()));
+        ModelFile::from_solution(&sol, &prep.obs.groups, Provenance::default()).write(&path).unwrap();
+        let back = load(&path);
+        std::fs::remove_file(&path).ok();
+        let back = back.unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&back.model.u), bits(&sol.model.u), "coefficients");
+        // The file keeps the upper triangle (the solve's inverse is symmetric to rounding).
+        let n = sol.covariance.nrows();
+        let upper = |c: &Mat<f64>| (0..n).flat_map(|i| (i..n).map(move |j| c[(i, j)].to_bits())).collect::<Vec<_>>();
+        assert_eq!(upper(&back.covariance), upper(&sol.covariance), "covariance");
+        assert_eq!(back.resolution, sol.resolution, "interpolation factors");
+    }
+}
