@@ -1103,7 +1103,12 @@ pub fn fit<'a>(
         CovarianceScaling::APriori => 1.0,
         CovarianceScaling::Birge => vf.max(1.0),
     };
-    let cov_full = Mat::from_fn(n, n, |i, j| cov_scaled[(i, j)] / (scale[i] * scale[j]) * cov_factor);
+    // Symmetric to the bit (the inverse is symmetric only to rounding): the upper triangle,
+    // which is what a model file keeps, so a model read back predicts what the solve did.
+    let cov_full = Mat::from_fn(n, n, |i, j| {
+        let (i, j) = (i.min(j), i.max(j));
+        cov_scaled[(i, j)] / (scale[i] * scale[j]) * cov_factor
+    });
 
     let n_u = layout.n_params;
     let covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
