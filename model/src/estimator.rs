@@ -521,9 +521,10 @@ impl<'a> Fit<'a> {
         let ScoreSums { bt, g2, c } = sums;
         parts
             .iter()
-            .map(|r| {
+            .zip(block_offsets(parts))
+            .map(|(r, at)| {
                 let b = Mat::from_fn(n, r.len(), |i, j| bt[(r.start + j) * n + i]);
-                let g2 = Mat::from_fn(r.len(), r.len(), |i, j| g2[(r.start + i) * k + r.start + j]);
+                let g2 = Mat::from_fn(r.len(), r.len(), |i, j| g2[at + i * r.len() + j]);
                 self.schur_score(&b, &g2, &c[r.clone()])
             })
             .collect()
@@ -533,10 +534,10 @@ impl<'a> Fit<'a> {
     /// the fitted (penalised) normal matrix on the gauge-constrained subspace.
     fn constrained_quadratic(&self, b: &Mat<f64>) -> Mat<f64> {
         let bs = Mat::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] / self.scale[i]);
-        let y = self.z.zt(&bs);
-        let mut x = y.clone();
-        self.factor.llt.solve_in_place(x.as_mut());
-        y.transpose() * &x
+        // `Y^T (L L^T)^-1 Y = (L^-1 Y)^T (L^-1 Y)`: one triangular solve instead of two.
+        let mut x = self.z.zt(&bs);
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(self.factor.llt.L(), x.as_mut(), Par::Seq);
+        x.transpose() * &x
     }
 
     /// Deletion statistic of each set of readings (indices into the observations): with `e` the
@@ -652,9 +653,19 @@ pub struct Deletion {
     pub leverage: f64,
 }
 
+/// Where each part's square block starts in [`ScoreSums::g2`]: the blocks one after the other.
+fn block_offsets(parts: &[std::ops::Range<usize>]) -> impl Iterator<Item = usize> + '_ {
+    parts.iter().scan(0, |at, r| {
+        let start = *at;
+        *at += r.len() * r.len();
+        Some(start)
+    })
+}
+
 /// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:
-/// `bt` (extension x model, row-major `k x n`: `B^T`), `g2` (extension x extension, row-major
-/// `k x k`, within each part only) and the gradient `c`, each group's origin eliminated.
+/// `bt` (extension x model, row-major `k x n`: `B^T`), `g2` (extension x extension within each
+/// part only: the parts' square blocks, row-major, one after the other, so that the sums stay
+/// in cache) and the gradient `c`, each group's origin eliminated.
 struct ScoreSums {
     bt: Vec<f64>,
     g2: Vec<f64>,
@@ -674,16 +685,35 @@ impl ScoreSums {
     ) -> ScoreSums {
         let p = &fit.prob;
         let mut bt = vec![0.0; k * n];
-        let mut g2 = vec![0.0; k * k];
+        let mut g2 = vec![0.0; parts.iter().map(|r| r.len() * r.len()).sum()];
         let mut c = vec![0.0; k];
         let mut dense = vec![0.0; k];
-        // Part of each extension column (columns outside every part: none).
+        // Part of each extension column (columns outside every part: none), and where each
+        // part's block starts in `g2`.
         let mut part_of = vec![usize::MAX; k];
         for (q, r) in parts.iter().enumerate() {
             part_of[r.clone()].iter_mut().for_each(|x| *x = q);
         }
+        let block: Vec<usize> = block_offsets(parts).collect();
         let (mut nz, mut reg, mut wreg) = (Vec::new(), Vec::new(), Vec::new());
         let mut runs: Vec<normal::Run> = Vec::new();
+        // Readings in a row that touch the same columns (along a line, within one knot span)
+        // are summed in a small dense block first ([`normal::CrossBatch`]); of the extension's
+        // own products only those within a part are kept.
+        let mut batch = normal::CrossBatch::default();
+        let mut segments: Vec<std::ops::Range<usize>> = Vec::new();
+        // A segment's block into its part's block of `g2`: the segment's columns are sorted
+        // and all in the same part.
+        let mut within_parts = |cols: &[usize], sums: &[f64]| {
+            let part = part_of[cols[0]];
+            let (s, m) = (parts[part].start, parts[part].len());
+            for (&j, row) in cols.iter().zip(sums.chunks_exact(cols.len())) {
+                let dst = &mut g2[block[part] + (j - s) * m..][..m];
+                for (&l, &v) in cols.iter().zip(row) {
+                    dst[l - s] += v;
+                }
+            }
+        };
         // Per group, the weighted column sums of model and extension over sqrt(W): the origins
         // are eliminated at the end by one product each, `B^T -= Sg Sa^T`, `G2 -= Sg Sg^T`.
         let mut sa = Mat::<f64>::zeros(n, groups.len());
@@ -709,39 +739,41 @@ impl ScoreSums {
                 wreg.extend(reg.iter().map(|&v| w * v));
                 let r = fit.solution.residuals[i];
                 let sgc = sg.col_as_slice_mut(q);
-                // `nz` is sorted and the parts are ranges: each part's columns are a run of it.
-                let mut run = 0;
-                while run < nz.len() {
-                    let part = part_of[nz[run]];
-                    let end = nz[run..].iter().position(|&j| part_of[j] != part).map_or(nz.len(), |e| run + e);
-                    for a in run..end {
-                        let (j, wr) = (nz[a], wreg[a]);
-                        sgc[j] += wr;
-                        c[j] += wr * r;
-                        if part != usize::MAX {
-                            let gj = &mut g2[j * k..(j + 1) * k];
-                            for b in run..end {
-                                gj[nz[b]] += wr * reg[b];
-                            }
-                        }
-                    }
-                    run = end;
+                for (&j, &wr) in nz.iter().zip(&wreg) {
+                    sgc[j] += wr;
+                    c[j] += wr * r;
                 }
                 normal::runs_of(ri, &mut runs);
-                normal::add_cross(&mut bt, n, &nz, &wreg, &runs, rv);
+                if !batch.holds(&nz, &runs) {
+                    batch.flush(&mut bt, n, &mut within_parts);
+                    // `nz` is sorted and the parts are ranges: each part's columns are a run of it.
+                    segments.clear();
+                    let mut at = 0;
+                    while at < nz.len() {
+                        let part = part_of[nz[at]];
+                        let end = nz[at..].iter().position(|&j| part_of[j] != part).map_or(nz.len(), |e| at + e);
+                        if part != usize::MAX {
+                            segments.push(at..end);
+                        }
+                        at = end;
+                    }
+                    batch.start(&nz, &runs, rv.len(), &segments);
+                }
+                batch.add(&wreg, &reg, rv);
             }
             let sw = wsum.sqrt();
             sa.col_as_slice_mut(q).iter_mut().for_each(|v| *v /= sw);
             sg.col_as_slice_mut(q).iter_mut().for_each(|v| *v /= sw);
         }
+        batch.flush(&mut bt, n, &mut within_parts);
         // `bt`, row-major k x n, is B column-major (n x k).
         let btm = faer::MatMut::from_column_major_slice_mut(&mut bt, n, k);
         matmul(btm, Accum::Add, sa.as_ref(), sg.transpose(), -1.0, Par::Seq);
         let gg = sg.as_ref() * sg.transpose();
-        for j in 0..k {
-            for l in 0..k {
-                if part_of[j] == part_of[l] && part_of[j] != usize::MAX {
-                    g2[j * k + l] -= gg[(j, l)];
+        for (r, &at) in parts.iter().zip(&block) {
+            for j in r.clone() {
+                for l in r.clone() {
+                    g2[at + (j - r.start) * r.len() + l - r.start] -= gg[(j, l)];
                 }
             }
         }

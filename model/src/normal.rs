@@ -8,7 +8,7 @@
 //! factorisations) is faer's.
 
 /// One run of a row: `len` consecutive columns from `col`, values at `vals[at..at + len]`.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Run {
     pub col: usize,
     pub len: usize,
@@ -47,32 +47,113 @@ fn add_run(dst: &mut [f64], w: f64, r: &Run, vals: &[f64]) {
     }
 }
 
-/// Adds `w_j a` to row `j` of the row-major `k x n` matrix `bt` for every `(j, w_j)` of
-/// `(cols, weights)`: the cross products `G^T W A` of an extension's sparse row (already
-/// weighted) against a model row `a` given by `runs` over `vals` ([`add_run`]).
-pub(crate) fn add_cross(bt: &mut [f64], n: usize, cols: &[usize], weights: &[f64], runs: &[Run], vals: &[f64]) {
-    struct Cross<'a> {
-        bt: &'a mut [f64],
-        n: usize,
-        cols: &'a [usize],
-        weights: &'a [f64],
-        runs: &'a [Run],
-        vals: &'a [f64],
+/// The cross products of consecutive readings whose extension rows touch the same columns and
+/// whose model rows have the same runs (a line's readings within one knot span): `sum w g a^T`
+/// and, within each segment of the extension's columns, `sum w g g^T` over the batch, dense and
+/// small enough for the first-level cache, added to the large `k x n` sums once per batch
+/// instead of once per reading. Scattering each reading into the large sums costs a cache miss
+/// per run; here a reading costs contiguous SIMD rows.
+#[derive(Default)]
+pub(crate) struct CrossBatch {
+    /// The extension's columns (rows of the cross products).
+    cols: Vec<usize>,
+    /// The model row's runs; their values are `width` long.
+    runs: Vec<Run>,
+    width: usize,
+    /// Ranges of `cols` whose products among themselves are summed.
+    segments: Vec<std::ops::Range<usize>>,
+    /// `cols.len() x width`, row-major.
+    cross: Vec<f64>,
+    /// Each segment's square block, row-major, one after the other.
+    gram: Vec<f64>,
+    readings: usize,
+}
+
+impl CrossBatch {
+    /// Whether a reading with extension columns `cols` and model runs `runs` joins the batch.
+    pub fn holds(&self, cols: &[usize], runs: &[Run]) -> bool {
+        self.readings > 0 && self.cols == cols && self.runs == runs
     }
-    impl pulp::WithSimd for Cross<'_> {
-        type Output = ();
-        #[inline(always)]
-        fn with_simd<S: pulp::Simd>(self, _simd: S) {
-            let n = self.n;
-            for (&j, &wj) in self.cols.iter().zip(self.weights) {
-                let dst = &mut self.bt[j * n..(j + 1) * n];
-                for r in self.runs {
-                    add_run(dst, wj, r, self.vals);
+
+    /// Starts an empty batch for readings of this shape; `segments` (ranges of `cols`) are the
+    /// columns whose products among themselves are wanted.
+    pub fn start(&mut self, cols: &[usize], runs: &[Run], width: usize, segments: &[std::ops::Range<usize>]) {
+        self.cols.clear();
+        self.cols.extend_from_slice(cols);
+        self.runs.clear();
+        self.runs.extend_from_slice(runs);
+        self.width = width;
+        self.segments.clear();
+        self.segments.extend_from_slice(segments);
+        self.cross.clear();
+        self.cross.resize(cols.len() * width, 0.0);
+        self.gram.clear();
+        self.gram.resize(segments.iter().map(|r| r.len() * r.len()).sum(), 0.0);
+        self.readings = 0;
+    }
+
+    /// Adds one reading: its weighted extension row `wg`, the same unweighted `g`, and its
+    /// model row's values `a` (in the order of the runs).
+    pub fn add(&mut self, wg: &[f64], g: &[f64], a: &[f64]) {
+        struct Add<'a> {
+            batch: &'a mut CrossBatch,
+            wg: &'a [f64],
+            g: &'a [f64],
+            a: &'a [f64],
+        }
+        impl pulp::WithSimd for Add<'_> {
+            type Output = ();
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _simd: S) {
+                let b = self.batch;
+                let (m, w) = (b.cols.len(), b.width);
+                assert!(self.wg.len() == m && self.g.len() == m && self.a.len() == w);
+                for (row, &wr) in b.cross.chunks_exact_mut(w).zip(self.wg) {
+                    for (d, &v) in row.iter_mut().zip(self.a) {
+                        *d += wr * v;
+                    }
+                }
+                let mut at = 0;
+                for seg in &b.segments {
+                    let len = seg.len();
+                    let g = &self.g[seg.clone()];
+                    for (row, &wr) in b.gram[at..at + len * len].chunks_exact_mut(len).zip(&self.wg[seg.clone()]) {
+                        for (d, &v) in row.iter_mut().zip(g) {
+                            *d += wr * v;
+                        }
+                    }
+                    at += len * len;
                 }
             }
         }
+        pulp::Arch::new().dispatch(Add { batch: self, wg, g, a });
+        self.readings += 1;
     }
-    pulp::Arch::new().dispatch(Cross { bt, n, cols, weights, runs, vals });
+
+    /// Adds the batch's sums to `bt` (row-major `k x n`, rows indexed by the extension's
+    /// columns) and hands each segment's `g g^T` block to `gram` with the segment's columns;
+    /// then empties the batch.
+    pub fn flush(&mut self, bt: &mut [f64], n: usize, gram: &mut impl FnMut(&[usize], &[f64])) {
+        if self.readings == 0 {
+            return;
+        }
+        let w = self.width;
+        for (&j, src) in self.cols.iter().zip(self.cross.chunks_exact(w)) {
+            let dst = &mut bt[j * n..(j + 1) * n];
+            for run in &self.runs {
+                for (d, v) in dst[run.col..run.col + run.len].iter_mut().zip(&src[run.at..run.at + run.len]) {
+                    *d += v;
+                }
+            }
+        }
+        let mut at = 0;
+        for seg in &self.segments {
+            let len = seg.len();
+            gram(&self.cols[seg.clone()], &self.gram[at..at + len * len]);
+            at += len * len;
+        }
+        self.readings = 0;
+    }
 }
 
 /// The six functions of one axis in a row: function `f` touches columns
@@ -279,22 +360,59 @@ mod tests {
     }
 
     #[test]
-    fn cross_products_match_dense() {
+    fn batched_cross_products_match_dense() {
+        // Readings of two shapes, the first shape twice in a row: the sums over all of them
+        // against dense outer products, for `G^T W A` and within each segment `G^T W G`.
         let n = 12;
-        let idx = vec![0, 1, 2, 3, 5, 7, 8, 9, 10];
-        let vals: Vec<f64> = (0..idx.len()).map(|k| 0.3 + k as f64).collect();
-        let mut runs = Vec::new();
-        runs_of(&idx, &mut runs);
-        let (cols, weights) = (vec![1, 4], vec![2.0, -0.5]);
-        let k = 5;
-        let mut bt = vec![0.0; k * n];
-        add_cross(&mut bt, n, &cols, &weights, &runs, &vals);
-        for j in 0..k {
-            for i in 0..n {
-                let w = cols.iter().position(|&c| c == j).map_or(0.0, |p| weights[p]);
-                let a = idx.iter().position(|&c| c == i).map_or(0.0, |p| vals[p]);
-                assert_eq!(bt[j * n + i], w * a, "({j}, {i})");
+        let k = 6;
+        let shapes: [(Vec<usize>, Vec<usize>); 2] =
+            [(vec![0, 1, 2, 3, 5, 7, 8, 9, 10], vec![1, 2, 4]), (vec![2, 3, 4, 5, 11], vec![0, 3, 4, 5])];
+        let segments = |cols: &[usize]| -> Vec<std::ops::Range<usize>> {
+            // Columns below 3 and from 3 on are two parts.
+            let split = cols.iter().position(|&c| c >= 3).unwrap_or(cols.len());
+            [0..split, split..cols.len()].into_iter().filter(|r| !r.is_empty()).collect()
+        };
+        // A segment's block into the full `k x k` products.
+        let into = |gram: &mut [f64], cs: &[usize], sums: &[f64]| {
+            for (a, &j) in cs.iter().enumerate() {
+                for (b, &l) in cs.iter().enumerate() {
+                    gram[j * k + l] += sums[a * cs.len() + b];
+                }
             }
+        };
+        let readings: Vec<(f64, usize)> = vec![(2.0, 0), (0.5, 0), (1.5, 1), (3.0, 0)];
+        let (mut bt, mut gram) = (vec![0.0; k * n], vec![0.0; k * k]);
+        let (mut want_bt, mut want_gram) = (vec![0.0; k * n], vec![0.0; k * k]);
+        let mut batch = CrossBatch::default();
+        let mut runs = Vec::new();
+        for (r, &(w, s)) in readings.iter().enumerate() {
+            let (idx, cols) = &shapes[s];
+            let vals: Vec<f64> = (0..idx.len()).map(|a| 0.3 + a as f64 + r as f64).collect();
+            let g: Vec<f64> = (0..cols.len()).map(|a| 1.0 - 0.25 * a as f64 + r as f64).collect();
+            let wg: Vec<f64> = g.iter().map(|v| w * v).collect();
+            runs_of(idx, &mut runs);
+            if !batch.holds(cols, &runs) {
+                batch.flush(&mut bt, n, &mut |cs: &[usize], sums: &[f64]| into(&mut gram, cs, sums));
+                batch.start(cols, &runs, vals.len(), &segments(cols));
+            }
+            batch.add(&wg, &g, &vals);
+            for (a, &j) in cols.iter().enumerate() {
+                for (b, &i) in idx.iter().enumerate() {
+                    want_bt[j * n + i] += wg[a] * vals[b];
+                }
+                for (b, &l) in cols.iter().enumerate() {
+                    if (j < 3) == (l < 3) {
+                        want_gram[j * k + l] += wg[a] * g[b];
+                    }
+                }
+            }
+        }
+        batch.flush(&mut bt, n, &mut |cs: &[usize], sums: &[f64]| into(&mut gram, cs, sums));
+        for (i, (got, want)) in bt.iter().zip(&want_bt).enumerate() {
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "bt[{i}]: {got} vs {want}");
+        }
+        for (i, (got, want)) in gram.iter().zip(&want_gram).enumerate() {
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "gram[{i}]: {got} vs {want}");
         }
     }
 
