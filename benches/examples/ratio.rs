@@ -18,9 +18,17 @@ fn main() {
         bg = bg.min(s.elapsed().as_secs_f64());
         std::hint::black_box(g);
         let s = Instant::now();
-        let a = volcal::flexibility::solve_auto(&t.topology, t.travel, &case.obs, &case.options, &auto, &[None; 18]).unwrap();
+        let a = volcal::flexibility::solve_auto(&t.topology, t.travel, &case.obs, &case.options, &auto, &[None; 18])
+            .unwrap();
         ba = ba.min(s.elapsed().as_secs_f64());
-        hash = a.solution.model.u.iter().chain((0..a.solution.covariance.nrows()).flat_map(|i| (0..a.solution.covariance.ncols()).map(move |j| (i, j))).map(|(i, j)| &a.solution.covariance[(i, j)])).fold(0xcbf29ce484222325, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100000001b3));
+        let cov = &a.solution.covariance;
+        let cov = (0..cov.nrows()).flat_map(|i| (0..cov.ncols()).map(move |j| cov[(i, j)]));
+        hash = fnv1a(a.solution.model.u.iter().copied().chain(cov));
     }
     println!("given {:.2} ms  auto {:.2} ms  ratio {:.3}  hash {:016x}", bg * 1e3, ba * 1e3, ba / bg, hash);
+}
+
+/// FNV-1a over the bits of the values: equal hashes, equal values to the bit.
+fn fnv1a(values: impl Iterator<Item = f64>) -> u64 {
+    values.fold(0xcbf29ce484222325, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100000001b3))
 }
