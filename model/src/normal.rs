@@ -5,7 +5,8 @@
 //! against run. The runs of length 4 use a fixed-width kernel, compiled for the best instruction
 //! set available at run time (AVX2/FMA or AVX-512 through `pulp`'s dispatch, scalar otherwise),
 //! so the binary stays portable. Everything after assembly (the origin elimination, the
-//! factorisations) is faer's.
+//! factorisations) is faer's. The extension tests' cross products (`G^T W A`, `G^T W G`) are
+//! summed per batch of readings of the same shape ([`CrossBatch`]).
 
 /// One run of a row: `len` consecutive columns from `col`, values at `vals[at..at + len]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
