@@ -664,8 +664,8 @@ fn block_offsets(parts: &[std::ops::Range<usize>]) -> impl Iterator<Item = usize
 
 /// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:
 /// `bt` (extension x model, row-major `k x n`: `B^T`), `g2` (extension x extension within each
-/// part only: the parts' square blocks, row-major, one after the other, so that the sums stay
-/// in cache) and the gradient `c`, each group's origin eliminated.
+/// part only, as the Schur complements use them: the parts' square blocks, row-major, one after
+/// the other ([`block_offsets`])) and the gradient `c`, each group's origin eliminated.
 struct ScoreSums {
     bt: Vec<f64>,
     g2: Vec<f64>,
