@@ -743,13 +743,12 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut iterations = 0;
     let mut converged = false;
     let mut grad;
-    // The traces `t_g` at `cur`, while they are known.
-    let mut t_cur: Option<Vec<f64>> = None;
+    // The derivatives at `cur`, where the iteration stops with them.
+    let mut at_cur: Option<Derivatives> = None;
     for it in 0..max_iter {
         iterations = it + 1;
         let lambda = lam(&rho);
         let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
-        t_cur = Some(d.t.clone());
         grad = d.gradient(rp, &lambda, &cur.e, cur.scale);
         // Free components: not pinned at a bound by a gradient pushing outwards.
         let free: Vec<usize> = (0..ng)
@@ -760,6 +759,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         let gmax = free.iter().map(|&g| grad[g].abs()).fold(0.0, f64::max);
         if gmax < GRAD_TOL {
             converged = true;
+            at_cur = Some(d);
             break;
         }
         let k = free.len();
@@ -794,7 +794,6 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
                     let moved = free.iter().map(|&g| (trial[g] - rho[g]).abs()).fold(0.0, f64::max);
                     rho = trial;
                     cur = e;
-                    t_cur = None;
                     accepted = moved > 1e-8;
                     break;
                 }
@@ -804,14 +803,29 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         if !accepted {
             // No descent along the Newton direction: at the optimum to the criterion's precision.
             converged = gmax < 1e-1;
+            at_cur = Some(d);
             break;
         }
     }
-    // No function stiffer than DETAIL_FLOOR parameters of detail beyond its parabola.
+    // No function stiffer than DETAIL_FLOOR parameters of detail beyond its parabola: up to
+    // eight rounds that raise some. A round moves a few groups' smoothing; the traces there
+    // follow from those where the rounds started ([`Derivatives::traces_moved`]) without
+    // factorising the criterion again, and where they show nothing more to raise, the
+    // criterion is factorised once and the last round is taken on its own traces. `cur` is at
+    // `from.0`.
     let mut lambda = lam(&rho);
     let mut at_upper = vec![false; ng];
-    for _ in 0..8 {
-        let t = t_cur.take().unwrap_or_else(|| traces(rp, cur.llt.L()));
+    let mut from = (lambda.clone(), at_cur.unwrap_or_else(|| Derivatives::at(rp, cur.llt.L(), &cur.y)));
+    let mut rounds = 0;
+    while rounds < 8 {
+        let t = match from.1.traces_moved(&from.0, &lambda) {
+            Some(t) => t,
+            None => {
+                cur = evaluate(q, rp, &lambda)?;
+                from = (lambda.clone(), Derivatives::at(rp, cur.llt.L(), &cur.y));
+                from.1.t.clone()
+            }
+        };
         let mut changed = false;
         for g in (0..ng).filter(|&g| active[g]) {
             let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
@@ -823,30 +837,19 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
                 changed = true;
             }
         }
-        if !changed {
+        if changed {
+            rounds += 1;
+        } else if lambda == from.0 {
             break;
+        } else {
+            cur = evaluate(q, rp, &lambda)?;
+            from = (lambda.clone(), Derivatives::at(rp, cur.llt.L(), &cur.y));
         }
+    }
+    if lambda != from.0 {
         cur = evaluate(q, rp, &lambda)?;
     }
     Some(RemlResult { lambda, y: cur.y, iterations, converged, at_upper, scale: cur.scale })
-}
-
-/// `t_g = tr(M^-1 P_g) = |L^-1 B_g^T|_F^2` per group, for `M = L L^T`: what the detail floor
-/// needs, without the rest of [`Derivatives`].
-fn traces(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>) -> Vec<f64> {
-    let solved = |bt: &Mat<f64>| {
-        let mut g = bt.clone();
-        faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, g.as_mut(), faer::Par::Seq);
-        g.squared_norm_l2()
-    };
-    // The groups in two halves side by side ([`crate::halves`]).
-    let half = rp.bt.len() / 2;
-    let (a, b) = halves::both(
-        true,
-        || rp.bt[..half].iter().map(solved).collect::<Vec<f64>>(),
-        || rp.bt[half..].iter().map(solved).collect::<Vec<f64>>(),
-    );
-    a.into_iter().chain(b).collect()
 }
 
 /// What the gradient and Hessian of the REML criterion need at one point: `G_g = L^-1 B_g^T`,
@@ -854,8 +857,9 @@ fn traces(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>) -> Vec<f64> {
 struct Derivatives {
     /// Columns of each group in `g`.
     cols: Vec<std::ops::Range<usize>>,
-    /// `G^T G` for `G = L^-1 [B_1^T .. B_n^T]`.
-    gram: Mat<f64>,
+    /// `G = L^-1 [B_1^T .. B_n^T]`. Its Gram matrix, which only the Hessian needs, is formed
+    /// there, over the groups the Hessian is of ([`Derivatives::pair_traces`]).
+    g: Mat<f64>,
     t: Vec<f64>,
     /// `L^-1 [w_1 .. w_n]`.
     w: Mat<f64>,
@@ -889,15 +893,77 @@ impl Derivatives {
         };
         let (left, right) = g.as_mut().split_at_col_mut(half);
         halves::both(true, || (solve(left), solve(w.as_mut())), || solve(right));
-        let gr = g.as_ref();
-        let (top, bottom) = halves::both(
-            true,
-            || gr.subcols(0, half).transpose() * gr,
-            || gr.subcols(half, start - half).transpose() * gr,
-        );
-        let gram = Mat::from_fn(start, start, |i, j| if i < half { top[(i, j)] } else { bottom[(i - half, j)] });
-        let t = cols.iter().map(|c| c.clone().map(|i| gram[(i, i)]).sum()).collect();
-        Derivatives { cols, gram, t, w }
+        let t = cols.iter().map(|c| g.subcols(c.start, c.len()).squared_norm_l2()).collect();
+        Derivatives { cols, g, t, w }
+    }
+
+    /// `t_g` where the smoothing parameters are `lambda` instead of `base` (this point's), a
+    /// few groups moved: with `U` the columns of `G` of the groups that moved and `D` their moves
+    /// (`lambda_g - base_g` on each of the group's columns), `M' = M + B_U D B_U^T`, and by
+    /// Woodbury's identity `t'_h = t_h - tr(X_h^T K^-1 X_h)` with `X = U^T G` and `K = D^-1 +
+    /// U^T U`: a product of `G` with a few of its columns instead of a factorisation and a
+    /// triangular solve of all of them. `None` where the result is not a trace (negative or
+    /// not finite: `K` too ill-conditioned); the caller then factorises.
+    fn traces_moved(&self, base: &[f64], lambda: &[f64]) -> Option<Vec<f64>> {
+        let moved: Vec<usize> = (0..base.len()).filter(|&g| lambda[g] != base[g]).collect();
+        if moved.is_empty() {
+            return Some(self.t.clone());
+        }
+        let m: usize = moved.iter().map(|&g| self.cols[g].len()).sum();
+        let mut u = Mat::<f64>::zeros(self.g.nrows(), m);
+        let mut d_inv = Vec::with_capacity(m);
+        for &g in &moved {
+            let c = &self.cols[g];
+            u.subcols_mut(d_inv.len(), c.len()).copy_from(self.g.subcols(c.start, c.len()));
+            d_inv.extend(std::iter::repeat_n(1.0 / (lambda[g] - base[g]), c.len()));
+        }
+        let x = u.transpose() * &self.g;
+        let mut k = u.transpose() * &u;
+        for (c, d) in d_inv.iter().enumerate() {
+            k[(c, c)] += d;
+        }
+        let y = k.partial_piv_lu().solve(&x);
+        let t: Vec<f64> = self
+            .cols
+            .iter()
+            .zip(&self.t)
+            .map(|(c, &t)| t - c.clone().map(|j| (0..m).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum::<f64>())
+            .collect();
+        t.iter().all(|v| v.is_finite() && *v >= 0.0).then_some(t)
+    }
+
+    /// `tr(M^-1 P_g M^-1 P_h) = |G_g^T G_h|_F^2` for the pairs of `free` (`k x k`, symmetric):
+    /// the Gram matrix of `G` on the free groups' columns, its upper blocks only (half the
+    /// product, and none at all where the Newton iteration stops on the gradient alone). The
+    /// block rows in two halves of about equal work ([`crate::halves`]).
+    fn pair_traces(&self, free: &[usize]) -> Mat<f64> {
+        let k = free.len();
+        let mut at = vec![0];
+        for &g in free {
+            at.push(at.last().unwrap() + self.cols[g].len());
+        }
+        let width = at[k];
+        let mut gf = Mat::<f64>::zeros(self.g.nrows(), width);
+        for (a, &g) in free.iter().enumerate() {
+            gf.subcols_mut(at[a], at[a + 1] - at[a]).copy_from(self.g.subcols(self.cols[g].start, self.cols[g].len()));
+        }
+        // Block row `a`: `G_a^T [G_a .. G_k]`, its blocks' squared norms.
+        let row = |a: usize| -> Vec<f64> {
+            let p = gf.subcols(at[a], at[a + 1] - at[a]).transpose() * gf.subcols(at[a], width - at[a]);
+            (a..k).map(|b| p.subcols(at[b] - at[a], at[b + 1] - at[b]).squared_norm_l2()).collect()
+        };
+        let work = (0..k).map(|a| (at[a + 1] - at[a]) * (width - at[a]));
+        let cut = halves::first_half(work);
+        let (first, second) =
+            halves::both(true, || (0..cut).map(row).collect::<Vec<_>>(), || (cut..k).map(row).collect::<Vec<_>>());
+        let mut out = Mat::<f64>::zeros(k, k);
+        for (a, r) in first.into_iter().chain(second).enumerate() {
+            for (b, v) in (a..k).zip(r) {
+                out[(a, b)] = v;
+                out[(b, a)] = v;
+            }
+        }
+        out
     }
 
     /// Gradient of `V` with respect to `log lambda` (Wood 2011):
@@ -923,15 +989,11 @@ impl Derivatives {
         let profiled = scale.profiled();
         let k = free.len();
         let ww = self.w.transpose() * &self.w;
+        let pair = self.pair_traces(free);
         let mut h = Mat::<f64>::zeros(k, k);
         for (a, &g) in free.iter().enumerate() {
             for (b, &hh) in free.iter().enumerate().skip(a) {
-                let mut tgh = 0.0;
-                for i in self.cols[g].clone() {
-                    for j in self.cols[hh].clone() {
-                        tgh += self.gram[(i, j)] * self.gram[(i, j)];
-                    }
-                }
+                let tgh = pair[(a, b)];
                 let mut v = -lambda[g] * lambda[hh] * ww[(g, hh)] / phi - 0.5 * lambda[g] * lambda[hh] * tgh;
                 if profiled {
                     v -= lambda[g] * e[g] * lambda[hh] * e[hh] / (2.0 * scale.dof * phi * phi);
@@ -1149,6 +1211,58 @@ mod tests {
             bt.push(b);
         }
         (m_data, g_data, chi2, n_obs, ReducedPenalty { bt, p, h, e0, rank })
+    }
+
+    /// The traces where a few groups' smoothing moved, from Woodbury's identity, are those of
+    /// the criterion factorised there, whether the smoothing moves up or down, by a little or
+    /// by orders of magnitude.
+    #[test]
+    fn traces_after_a_move_match_a_new_factorisation() {
+        let (m_data, g_data, chi2, n_obs, rp) = random_problem(16, 300, 40.0, 5);
+        let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2, n_obs };
+        let base = [2.0, 0.5, 30.0];
+        let e = evaluate(&q, &rp, &base).unwrap();
+        let d = Derivatives::at(&rp, e.llt.L(), &e.y);
+        for moved in [[2.0, 0.5, 30.0], [2e-3, 0.5, 30.0], [2.0, 5e2, 0.03], [1.9, 0.55, 3e4], [2e3, 5e-4, 30.0]] {
+            let t = d.traces_moved(&base, &moved).unwrap();
+            let e2 = evaluate(&q, &rp, &moved).unwrap();
+            let exact = Derivatives::at(&rp, e2.llt.L(), &e2.y).t;
+            for g in 0..3 {
+                assert!(
+                    (t[g] - exact[g]).abs() <= 1e-9 * exact[g],
+                    "{moved:?} group {g}: {} against {}",
+                    t[g],
+                    exact[g]
+                );
+            }
+        }
+    }
+
+    /// Readings that show no detail at all drive REML to its stiffest smoothing; the floor then
+    /// gives every function [`DETAIL_FLOOR`] parameters of detail back, to within a tenth (the
+    /// floor tolerates 0.9 of it; more than 1.1 would be a step past it), in the rounds it has.
+    #[test]
+    fn readings_without_detail_leave_the_floor_s_detail() {
+        for seed in [3, 11, 12] {
+            let (m_data, _, _, n_obs, mut rp) = random_problem(16, 300, 0.0, seed);
+            // No signal: the start is the penalised optimum and its roughness is zero.
+            let g_data = Mat::<f64>::zeros(16, 1);
+            rp.h.iter_mut().for_each(|h| h.fill(0.0));
+            rp.e0.iter_mut().for_each(|e| *e = 0.0);
+            let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: n_obs as f64, n_obs };
+            let res = reml(&q, &rp, &[1.0; 3], 60).unwrap();
+            let e = evaluate(&q, &rp, &res.lambda).unwrap();
+            let t = Derivatives::at(&rp, e.llt.L(), &e.y).t;
+            for g in 0..3 {
+                let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
+                let detail = rp.rank[g] as f64 - res.lambda[g] * t[g];
+                assert!(res.at_upper[g], "seed {seed} group {g}: not at the floor, detail {detail}");
+                assert!(
+                    (0.9 * target..=1.1 * target).contains(&detail),
+                    "seed {seed} group {g}: detail {detail} for a floor of {target}"
+                );
+            }
+        }
     }
 
     /// The gradient and Hessian the Newton iteration uses are those of the criterion it
