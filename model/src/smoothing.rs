@@ -909,18 +909,14 @@ impl Derivatives {
         if moved.is_empty() {
             return Some(self.t.clone());
         }
-        let m: usize = moved.iter().map(|&g| self.cols[g].len()).sum();
-        let mut u = Mat::<f64>::zeros(self.g.nrows(), m);
-        let mut d_inv = Vec::with_capacity(m);
-        for &g in &moved {
-            let c = &self.cols[g];
-            u.subcols_mut(d_inv.len(), c.len()).copy_from(self.g.subcols(c.start, c.len()));
-            d_inv.extend(std::iter::repeat_n(1.0 / (lambda[g] - base[g]), c.len()));
-        }
+        let (u, at) = self.columns_of(&moved);
+        let m = u.ncols();
         let x = u.transpose() * &self.g;
         let mut k = u.transpose() * &u;
-        for (c, d) in d_inv.iter().enumerate() {
-            k[(c, c)] += d;
+        for (a, &g) in moved.iter().enumerate() {
+            for c in at[a]..at[a + 1] {
+                k[(c, c)] += 1.0 / (lambda[g] - base[g]);
+            }
         }
         let y = k.partial_piv_lu().solve(&x);
         let t: Vec<f64> = self
@@ -932,21 +928,28 @@ impl Derivatives {
         t.iter().all(|v| v.is_finite() && *v >= 0.0).then_some(t)
     }
 
+    /// The columns of `G` of `groups`, side by side, and where each group's columns begin
+    /// there (and, last, where they end).
+    fn columns_of(&self, groups: &[usize]) -> (Mat<f64>, Vec<usize>) {
+        let mut at = vec![0];
+        for &g in groups {
+            at.push(at.last().unwrap() + self.cols[g].len());
+        }
+        let mut out = Mat::<f64>::zeros(self.g.nrows(), at[groups.len()]);
+        for (a, &g) in groups.iter().enumerate() {
+            out.subcols_mut(at[a], at[a + 1] - at[a]).copy_from(self.g.subcols(self.cols[g].start, self.cols[g].len()));
+        }
+        (out, at)
+    }
+
     /// `tr(M^-1 P_g M^-1 P_h) = |G_g^T G_h|_F^2` for the pairs of `free` (`k x k`, symmetric):
     /// the Gram matrix of `G` on the free groups' columns, its upper blocks only (half the
     /// product, and none at all where the Newton iteration stops on the gradient alone). The
     /// block rows in two halves of about equal work ([`crate::halves`]).
     fn pair_traces(&self, free: &[usize]) -> Mat<f64> {
         let k = free.len();
-        let mut at = vec![0];
-        for &g in free {
-            at.push(at.last().unwrap() + self.cols[g].len());
-        }
+        let (gf, at) = self.columns_of(free);
         let width = at[k];
-        let mut gf = Mat::<f64>::zeros(self.g.nrows(), width);
-        for (a, &g) in free.iter().enumerate() {
-            gf.subcols_mut(at[a], at[a + 1] - at[a]).copy_from(self.g.subcols(self.cols[g].start, self.cols[g].len()));
-        }
         // Block row `a`: `G_a^T [G_a .. G_k]`, its blocks' squared norms.
         let row = |a: usize| -> Vec<f64> {
             let p = gf.subcols(at[a], at[a + 1] - at[a]).transpose() * gf.subcols(at[a], width - at[a]);
