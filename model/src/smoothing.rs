@@ -743,13 +743,13 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     let mut iterations = 0;
     let mut converged = false;
     let mut grad;
-    // The derivatives at `cur`, where the iteration stops with them.
-    let mut at_cur: Option<Derivatives> = None;
+    // The traces at `cur`, where the iteration stops with them.
+    let mut at_cur: Option<Traces> = None;
     for it in 0..max_iter {
         iterations = it + 1;
         let lambda = lam(&rho);
         let d = Derivatives::at(rp, cur.llt.L(), &cur.y);
-        grad = d.gradient(rp, &lambda, &cur.e, cur.scale);
+        grad = d.traces.gradient(rp, &lambda, &cur.e, cur.scale);
         // Free components: not pinned at a bound by a gradient pushing outwards.
         let free: Vec<usize> = (0..ng)
             .filter(|&g| {
@@ -759,7 +759,7 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         let gmax = free.iter().map(|&g| grad[g].abs()).fold(0.0, f64::max);
         if gmax < GRAD_TOL {
             converged = true;
-            at_cur = Some(d);
+            at_cur = Some(d.traces);
             break;
         }
         let k = free.len();
@@ -803,48 +803,44 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
         if !accepted {
             // No descent along the Newton direction: at the optimum to the criterion's precision.
             converged = gmax < 1e-1;
-            at_cur = Some(d);
+            at_cur = Some(d.traces);
             break;
         }
     }
     // No function stiffer than DETAIL_FLOOR parameters of detail beyond its parabola: up to
     // eight rounds that raise some. A round moves a few groups' smoothing; the traces there
-    // follow from those where the rounds started ([`Derivatives::traces_moved`]) without
-    // factorising the criterion again, and where they show nothing more to raise, the
-    // criterion is factorised once and the last round is taken on its own traces. `cur` is at
-    // `from.0`.
+    // follow from those where the rounds started ([`Traces::moved`]) without factorising the
+    // criterion again, and where they show nothing more to raise, the criterion is factorised
+    // once and the last round is taken on its own traces. `cur` is at `from.0`.
     let mut lambda = lam(&rho);
     let mut at_upper = vec![false; ng];
-    let mut from = (lambda.clone(), at_cur.unwrap_or_else(|| Derivatives::at(rp, cur.llt.L(), &cur.y)));
+    let mut from = (lambda.clone(), at_cur.unwrap_or_else(|| Traces::at(rp, cur.llt.L())));
     let mut rounds = 0;
     while rounds < 8 {
-        let t = match from.1.traces_moved(&from.0, &lambda) {
-            Some(t) => t,
-            None => {
-                cur = evaluate(q, rp, &lambda)?;
-                from = (lambda.clone(), Derivatives::at(rp, cur.llt.L(), &cur.y));
-                from.1.t.clone()
+        if let Some(t) = from.1.moved(&from.0, &lambda) {
+            let mut raised = false;
+            for g in (0..ng).filter(|&g| active[g]) {
+                let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
+                let detail = rp.rank[g] as f64 - lambda[g] * t[g];
+                if detail < 0.9 * target {
+                    // Far from the data, detail ~ 1 / lambda.
+                    at_upper[g] = true;
+                    lambda[g] *= detail.max(1e-3 * target) / target;
+                    raised = true;
+                }
             }
-        };
-        let mut changed = false;
-        for g in (0..ng).filter(|&g| active[g]) {
-            let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
-            let detail = rp.rank[g] as f64 - lambda[g] * t[g];
-            if detail < 0.9 * target {
-                // Far from the data, detail ~ 1 / lambda.
-                at_upper[g] = true;
-                lambda[g] *= detail.max(1e-3 * target) / target;
-                changed = true;
+            if raised {
+                rounds += 1;
+                continue;
+            }
+            if lambda == from.0 {
+                break;
             }
         }
-        if changed {
-            rounds += 1;
-        } else if lambda == from.0 {
-            break;
-        } else {
-            cur = evaluate(q, rp, &lambda)?;
-            from = (lambda.clone(), Derivatives::at(rp, cur.llt.L(), &cur.y));
-        }
+        // The identity failed, or the rounds stopped away from the factorised point: factorise
+        // where they are, and take the round again on exact traces.
+        cur = evaluate(q, rp, &lambda)?;
+        from = (lambda.clone(), Traces::at(rp, cur.llt.L()));
     }
     if lambda != from.0 {
         cur = evaluate(q, rp, &lambda)?;
@@ -852,15 +848,23 @@ pub(crate) fn reml(q: &Quadratic<'_>, rp: &ReducedPenalty, lambda0: &[f64], max_
     Some(RemlResult { lambda, y: cur.y, iterations, converged, at_upper, scale: cur.scale })
 }
 
-/// What the gradient and Hessian of the REML criterion need at one point: `G_g = L^-1 B_g^T`,
-/// `t_g = tr(M^-1 P_g)`, and `w_g = L^-1 Z^T D^-1 S_g beta` (the reduced `S_g beta`).
-struct Derivatives {
+/// The traces of the REML criterion at one point: `G_g = L^-1 B_g^T` and `t_g = tr(M^-1
+/// P_g)`, what its gradient needs and the detail floor checks ([`reml`]), and from which the
+/// traces after a move of a few groups' smoothing follow ([`Traces::moved`]).
+struct Traces {
     /// Columns of each group in `g`.
     cols: Vec<std::ops::Range<usize>>,
     /// `G = L^-1 [B_1^T .. B_n^T]`. Its Gram matrix, which only the Hessian needs, is formed
-    /// there, over the groups the Hessian is of ([`Derivatives::pair_traces`]).
+    /// there, over the groups the Hessian is of ([`Traces::pair_traces`]).
     g: Mat<f64>,
     t: Vec<f64>,
+}
+
+/// What the gradient and Hessian of the REML criterion need at one point: its [`Traces`] and
+/// `w_g = L^-1 Z^T D^-1 S_g beta` (the reduced `S_g beta`), which only the Hessian and the
+/// smoothing parameters' share of the covariance use.
+struct Derivatives {
+    traces: Traces,
     /// `L^-1 [w_1 .. w_n]`.
     w: Mat<f64>,
 }
@@ -868,23 +872,34 @@ struct Derivatives {
 impl Derivatives {
     /// At the estimate `y` (reduced step from `u0`), with `l` the Cholesky factor there.
     fn at(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>, y: &Mat<f64>) -> Derivatives {
-        let nr = l.nrows();
-        let ng = rp.n_groups();
-        let mut cols = Vec::with_capacity(ng);
+        let mut w = Mat::<f64>::zeros(l.nrows(), rp.n_groups());
+        for k in 0..rp.n_groups() {
+            let v = &rp.bt[k] * (rp.bt[k].transpose() * y) + &rp.h[k];
+            w.col_mut(k).copy_from(v.col(0));
+        }
+        let traces = Traces::solving(rp, l, w.as_mut());
+        Derivatives { traces, w }
+    }
+}
+
+impl Traces {
+    /// With `l` the Cholesky factor of the criterion.
+    fn at(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>) -> Traces {
+        Traces::solving(rp, l, Mat::<f64>::zeros(l.nrows(), 0).as_mut())
+    }
+
+    /// [`Traces::at`], solving `also` with `l` alongside.
+    fn solving(rp: &ReducedPenalty, l: faer::MatRef<'_, f64>, also: faer::MatMut<'_, f64>) -> Traces {
+        let mut cols = Vec::with_capacity(rp.n_groups());
         let mut start = 0;
         for b in &rp.bt {
             cols.push(start..start + b.ncols());
             start += b.ncols();
         }
         // One triangular solve and one product for all groups.
-        let mut g = Mat::<f64>::zeros(nr, start);
+        let mut g = Mat::<f64>::zeros(l.nrows(), start);
         for (b, c) in rp.bt.iter().zip(&cols) {
             g.subcols_mut(c.start, c.len()).copy_from(b);
-        }
-        let mut w = Mat::<f64>::zeros(nr, ng);
-        for k in 0..ng {
-            let v = &rp.bt[k] * (rp.bt[k].transpose() * y) + &rp.h[k];
-            w.col_mut(k).copy_from(v.col(0));
         }
         // The columns in two halves side by side ([`crate::halves`]).
         let half = start / 2;
@@ -892,9 +907,9 @@ impl Derivatives {
             faer::linalg::triangular_solve::solve_lower_triangular_in_place(l, m, faer::Par::Seq)
         };
         let (left, right) = g.as_mut().split_at_col_mut(half);
-        halves::both(true, || (solve(left), solve(w.as_mut())), || solve(right));
+        halves::both(true, || (solve(left), solve(also)), || solve(right));
         let t = cols.iter().map(|c| g.subcols(c.start, c.len()).squared_norm_l2()).collect();
-        Derivatives { cols, g, t, w }
+        Traces { cols, g, t }
     }
 
     /// `t_g` where the smoothing parameters are `lambda` instead of `base` (this point's), a
@@ -904,7 +919,7 @@ impl Derivatives {
     /// U^T U`: a product of `G` with a few of its columns instead of a factorisation and a
     /// triangular solve of all of them. `None` where the result is not a trace (negative or
     /// not finite: `K` too ill-conditioned); the caller then factorises.
-    fn traces_moved(&self, base: &[f64], lambda: &[f64]) -> Option<Vec<f64>> {
+    fn moved(&self, base: &[f64], lambda: &[f64]) -> Option<Vec<f64>> {
         let moved: Vec<usize> = (0..base.len()).filter(|&g| lambda[g] != base[g]).collect();
         if moved.is_empty() {
             return Some(self.t.clone());
@@ -981,7 +996,9 @@ impl Derivatives {
             })
             .collect()
     }
+}
 
+impl Derivatives {
     /// Hessian of `V` with respect to `log lambda` over the groups `free` (Wood 2011):
     /// `H_gh = delta_gh lambda_g (e_g / phi + t_g) / 2 - lambda_g lambda_h (w_g . w_h) / phi
     ///  - lambda_g lambda_h tr(M^-1 P_g M^-1 P_h) / 2`, the trace being the squared norm of
@@ -992,7 +1009,7 @@ impl Derivatives {
         let profiled = scale.profiled();
         let k = free.len();
         let ww = self.w.transpose() * &self.w;
-        let pair = self.pair_traces(free);
+        let pair = self.traces.pair_traces(free);
         let mut h = Mat::<f64>::zeros(k, k);
         for (a, &g) in free.iter().enumerate() {
             for (b, &hh) in free.iter().enumerate().skip(a) {
@@ -1002,7 +1019,7 @@ impl Derivatives {
                     v -= lambda[g] * e[g] * lambda[hh] * e[hh] / (2.0 * scale.dof * phi * phi);
                 }
                 if a == b {
-                    v += 0.5 * lambda[g] * (e[g] / phi + self.t[g]);
+                    v += 0.5 * lambda[g] * (e[g] / phi + self.traces.t[g]);
                 }
                 h[(a, b)] = v;
                 h[(b, a)] = v;
@@ -1225,11 +1242,11 @@ mod tests {
         let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2, n_obs };
         let base = [2.0, 0.5, 30.0];
         let e = evaluate(&q, &rp, &base).unwrap();
-        let d = Derivatives::at(&rp, e.llt.L(), &e.y);
+        let d = Traces::at(&rp, e.llt.L());
         for moved in [[2.0, 0.5, 30.0], [2e-3, 0.5, 30.0], [2.0, 5e2, 0.03], [1.9, 0.55, 3e4], [2e3, 5e-4, 30.0]] {
-            let t = d.traces_moved(&base, &moved).unwrap();
+            let t = d.moved(&base, &moved).unwrap();
             let e2 = evaluate(&q, &rp, &moved).unwrap();
-            let exact = Derivatives::at(&rp, e2.llt.L(), &e2.y).t;
+            let exact = Traces::at(&rp, e2.llt.L()).t;
             for g in 0..3 {
                 assert!(
                     (t[g] - exact[g]).abs() <= 1e-9 * exact[g],
@@ -1255,7 +1272,7 @@ mod tests {
             let q = Quadratic { m_data: &m_data, g_data: &g_data, chi2: n_obs as f64, n_obs };
             let res = reml(&q, &rp, &[1.0; 3], 60).unwrap();
             let e = evaluate(&q, &rp, &res.lambda).unwrap();
-            let t = Derivatives::at(&rp, e.llt.L(), &e.y).t;
+            let t = Traces::at(&rp, e.llt.L()).t;
             for g in 0..3 {
                 let target = DETAIL_FLOOR.min(0.5 * rp.rank[g] as f64);
                 let detail = rp.rank[g] as f64 - res.lambda[g] * t[g];
@@ -1280,7 +1297,12 @@ mod tests {
             let at = |r: &[f64]| {
                 let e = evaluate(&q, &rp, &lam(r)).unwrap();
                 let d = Derivatives::at(&rp, e.llt.L(), &e.y);
-                (e.v, d.gradient(&rp, &lam(r), &e.e, e.scale), d.hessian(&lam(r), &e.e, e.scale, &[0, 1, 2]), e.scale)
+                (
+                    e.v,
+                    d.traces.gradient(&rp, &lam(r), &e.e, e.scale),
+                    d.hessian(&lam(r), &e.e, e.scale, &[0, 1, 2]),
+                    e.scale,
+                )
             };
             let (_, grad, hess, scale) = at(&rho);
             assert_eq!(scale.profiled(), profiled, "phi {}", scale.phi);
