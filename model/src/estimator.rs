@@ -653,13 +653,15 @@ pub struct Deletion {
     pub leverage: f64,
 }
 
-/// Where each part's square block starts in [`ScoreSums::g2`]: the blocks one after the other.
-fn block_offsets(parts: &[std::ops::Range<usize>]) -> impl Iterator<Item = usize> + '_ {
-    parts.iter().scan(0, |at, r| {
-        let start = *at;
-        *at += r.len() * r.len();
-        Some(start)
-    })
+/// Where each part's square block starts in [`ScoreSums::g2`] (the blocks one after the other)
+/// and, last, where they end: `parts.len() + 1` offsets.
+fn block_offsets(parts: &[std::ops::Range<usize>]) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(parts.iter().scan(0, |at, r| {
+            *at += r.len() * r.len();
+            Some(*at)
+        }))
+        .collect()
 }
 
 /// The cross products of an extension test ([`Fit::score_parts`]) over some of the groups:
@@ -685,7 +687,8 @@ impl ScoreSums {
     ) -> ScoreSums {
         let p = &fit.prob;
         let mut bt = vec![0.0; k * n];
-        let mut g2 = vec![0.0; parts.iter().map(|r| r.len() * r.len()).sum()];
+        let block = block_offsets(parts);
+        let mut g2 = vec![0.0; block[parts.len()]];
         let mut c = vec![0.0; k];
         let mut dense = vec![0.0; k];
         // Part of each extension column (columns outside every part: none), and where each
@@ -694,9 +697,7 @@ impl ScoreSums {
         for (q, r) in parts.iter().enumerate() {
             part_of[r.clone()].iter_mut().for_each(|x| *x = q);
         }
-        let block: Vec<usize> = block_offsets(parts).collect();
         let (mut nz, mut reg, mut wreg) = (Vec::new(), Vec::new(), Vec::new());
-        let mut runs: Vec<normal::Run> = Vec::new();
         // Readings in a row that touch the same columns (along a line, within one knot span)
         // are summed in a small dense block first ([`normal::CrossBatch`]); of the extension's
         // own products only those within a part are kept.
@@ -743,8 +744,7 @@ impl ScoreSums {
                     sgc[j] += wr;
                     c[j] += wr * r;
                 }
-                normal::runs_of(ri, &mut runs);
-                if !batch.holds(&nz, &runs) {
+                if !batch.holds(&nz, ri) {
                     batch.flush(&mut bt, n, &mut within_parts);
                     // `nz` is sorted and the parts are ranges: each part's columns are a run of it.
                     segments.clear();
@@ -757,7 +757,7 @@ impl ScoreSums {
                         }
                         at = end;
                     }
-                    batch.start(&nz, &runs, rv.len(), &segments);
+                    batch.start(&nz, ri, &segments);
                 }
                 batch.add(&wreg, &reg, rv);
             }

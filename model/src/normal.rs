@@ -58,7 +58,8 @@ fn add_run(dst: &mut [f64], w: f64, r: &Run, vals: &[f64]) {
 pub(crate) struct CrossBatch {
     /// The extension's columns (rows of the cross products).
     cols: Vec<usize>,
-    /// The model row's runs; their values are `width` long.
+    /// The model row's columns, and their runs ([`runs_of`]); its values are `width` long.
+    idx: Vec<usize>,
     runs: Vec<Run>,
     width: usize,
     /// Ranges of `cols` whose products among themselves are summed.
@@ -71,23 +72,26 @@ pub(crate) struct CrossBatch {
 }
 
 impl CrossBatch {
-    /// Whether a reading with extension columns `cols` and model runs `runs` joins the batch.
-    pub fn holds(&self, cols: &[usize], runs: &[Run]) -> bool {
-        self.readings > 0 && self.cols == cols && self.runs == runs
+    /// Whether a reading with extension columns `cols` and model row columns `idx` (sorted)
+    /// joins the batch.
+    pub fn holds(&self, cols: &[usize], idx: &[usize]) -> bool {
+        self.readings > 0 && self.cols == cols && self.idx == idx
     }
 
-    /// Starts an empty batch for readings of this shape; `segments` (ranges of `cols`) are the
-    /// columns whose products among themselves are wanted.
-    pub fn start(&mut self, cols: &[usize], runs: &[Run], width: usize, segments: &[std::ops::Range<usize>]) {
+    /// Starts an empty batch for readings of this shape (extension columns `cols`, model row
+    /// columns `idx`, sorted); `segments` (ranges of `cols`) are the columns whose products
+    /// among themselves are wanted. The model row's runs are split here, once per batch.
+    pub fn start(&mut self, cols: &[usize], idx: &[usize], segments: &[std::ops::Range<usize>]) {
         self.cols.clear();
         self.cols.extend_from_slice(cols);
-        self.runs.clear();
-        self.runs.extend_from_slice(runs);
-        self.width = width;
+        self.idx.clear();
+        self.idx.extend_from_slice(idx);
+        runs_of(idx, &mut self.runs);
+        self.width = idx.len();
         self.segments.clear();
         self.segments.extend_from_slice(segments);
         self.cross.clear();
-        self.cross.resize(cols.len() * width, 0.0);
+        self.cross.resize(cols.len() * idx.len(), 0.0);
         self.gram.clear();
         self.gram.resize(segments.iter().map(|r| r.len() * r.len()).sum(), 0.0);
         self.readings = 0;
@@ -385,16 +389,14 @@ mod tests {
         let (mut bt, mut gram) = (vec![0.0; k * n], vec![0.0; k * k]);
         let (mut want_bt, mut want_gram) = (vec![0.0; k * n], vec![0.0; k * k]);
         let mut batch = CrossBatch::default();
-        let mut runs = Vec::new();
         for (r, &(w, s)) in readings.iter().enumerate() {
             let (idx, cols) = &shapes[s];
             let vals: Vec<f64> = (0..idx.len()).map(|a| 0.3 + a as f64 + r as f64).collect();
             let g: Vec<f64> = (0..cols.len()).map(|a| 1.0 - 0.25 * a as f64 + r as f64).collect();
             let wg: Vec<f64> = g.iter().map(|v| w * v).collect();
-            runs_of(idx, &mut runs);
-            if !batch.holds(cols, &runs) {
+            if !batch.holds(cols, idx) {
                 batch.flush(&mut bt, n, &mut |cs: &[usize], sums: &[f64]| into(&mut gram, cs, sums));
-                batch.start(cols, &runs, vals.len(), &segments(cols));
+                batch.start(cols, idx, &segments(cols));
             }
             batch.add(&wg, &g, &vals);
             for (a, &j) in cols.iter().enumerate() {
