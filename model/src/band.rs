@@ -13,8 +13,10 @@
 //!
 //! Between the measured positions of an axis the covariance is scaled by the interpolation's
 //! variance scale ([`crate::predict::AxisResolution`]); that scale multiplies a value's
-//! variance and its draws alike, so `k` does not depend on it. Values the data do not determine
-//! are not in the band.
+//! variance and its draws alike, so `k` does not depend on it. The interpolation's shape there
+//! ([`crate::predict::interpolation_shape_covariance`]) is a bound, not a draw: it widens each
+//! value's `u` and is not in the draws, so `k` is that of the fit's own covariance and the band
+//! `k u` errs wide between the positions. Values the data do not determine are not in the band.
 //!
 //! Deterministic: the draws come from a generator seeded by the caller, so the same model
 //! gives the same `k`, bit for bit.

@@ -102,6 +102,18 @@ impl AxisResolution {
         }
     }
 
+    /// The measured positions either side of coordinate `q` where it lies between two of them
+    /// (not at one, nor beyond the first or the last).
+    pub fn neighbours(&self, q: f64) -> Option<(f64, f64)> {
+        match self {
+            AxisResolution::AtPositions { positions, .. } if self.interpolates(q) => {
+                let i = positions.partition_point(|&p| p < q);
+                (i > 0 && i < positions.len()).then(|| (positions[i - 1], positions[i]))
+            }
+            _ => None,
+        }
+    }
+
     /// Whether the readings contradict the interpolation between the positions.
     pub fn is_contradicted(&self) -> bool {
         matches!(self, AxisResolution::AtPositions { contradicted: true, .. })
@@ -225,7 +237,8 @@ pub struct PointError {
     pub e: Vector3<f64>,
     /// Covariance of `e` (of its determined part; see [`PointError::is_determined`]); between
     /// measured positions scaled by the interpolation's variance scale
-    /// ([`Uncertainty::interpolation_scale_at`]).
+    /// ([`Uncertainty::interpolation_scale_at`]), with the interpolation's shape added
+    /// ([`interpolation_shape_covariance`]).
     pub cov: Matrix3<f64>,
     /// How much `e` depends on directions the data leave undetermined ([`Uncertainty::share`]).
     pub undetermined: f64,
@@ -291,6 +304,45 @@ pub fn propagate(s: &Sensitivity, cov: &Mat<f64>) -> Matrix3<f64> {
     0.5 * (c + c.transpose())
 }
 
+/// The share of a value between two measured positions that the readings leave to the
+/// interpolation's shape: between two stops they give the values at the stops only, and the
+/// same values are met by the smooth curve the fit draws through them and by the chord between
+/// them (a table whose nodes are the stops, a guideway error that runs straight between two
+/// kinks). The fit states the curve's uncertainty; the difference `d` between the curve and the
+/// chord is a further component, taken as a bound: the error lies within `+-d` of the fit's
+/// value with any value equally likely, variance `d^2 / 3` (the rectangular distribution of the
+/// GUM, JCGM 100 4.3.7). It vanishes at the positions and where the fit runs straight between
+/// them, and it is largest mid-way where the fit bends most.
+pub const CHORD_BOUND_VARIANCE: f64 = 1.0 / 3.0;
+
+/// The covariance that the interpolation's shape adds at `(x, p)` ([`CHORD_BOUND_VARIANCE`]):
+/// for each axis along which `x` lies between two measured positions, with `d` the difference
+/// between the error at `x` and its chord between the error at those positions (the other
+/// coordinates held), `d d^T / 3`; the axes' contributions are added. Zero where `x` lies at the
+/// positions of every axis.
+pub fn interpolation_shape_covariance(
+    model: &ErrorModel,
+    resolution: &[AxisResolution; 3],
+    x: &Point3<f64>,
+    p: &Vector3<f64>,
+) -> Matrix3<f64> {
+    let mut c = Matrix3::zeros();
+    for a in Axis::ALL {
+        let i = a.index();
+        if let Some((qa, qb)) = resolution[i].neighbours(x[i]) {
+            let t = (x[i] - qa) / (qb - qa);
+            let at = |q: f64| {
+                let mut y = *x;
+                y[i] = q;
+                model.error(&y, p)
+            };
+            let d = model.error(x, p) - (at(qa) * (1.0 - t) + at(qb) * t);
+            c += d * d.transpose() * CHORD_BOUND_VARIANCE;
+        }
+    }
+    c
+}
+
 /// Volumetric error and its covariance at `(x, p)`, and whether the data determine it.
 pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> PointError {
     let s = model.layout.sensitivity(x, p);
@@ -316,7 +368,8 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
         x: *x,
         p: *p,
         e: s.apply(&model.u),
-        cov: propagate(&s, unc.covariance) * scale.unwrap_or(1.0),
+        cov: propagate(&s, unc.covariance) * scale.unwrap_or(1.0)
+            + if interpolated { interpolation_shape_covariance(model, unc.resolution, x, p) } else { Matrix3::zeros() },
         undetermined,
         interpolated,
         between_contradicted,
@@ -450,8 +503,16 @@ pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunctio
             v += bi * bj * cov[(off + i, off + j)];
         }
     }
-    let scale = unc.resolution[f.axis.index()].interpolation_scale_at(q).unwrap_or(1.0);
-    (v * scale).max(0.0).sqrt()
+    let r = &unc.resolution[f.axis.index()];
+    let scale = r.interpolation_scale_at(q).unwrap_or(1.0);
+    // The interpolation's shape ([`CHORD_BOUND_VARIANCE`]): the function against its chord.
+    let shape = r.neighbours(q).map_or(0.0, |(qa, qb)| {
+        let t = (q - qa) / (qb - qa);
+        let d =
+            model.function_value(f, q) - (model.function_value(f, qa) * (1.0 - t) + model.function_value(f, qb) * t);
+        d * d * CHORD_BOUND_VARIANCE
+    });
+    (v * scale + shape).max(0.0).sqrt()
 }
 
 /// Value and range of a function over its travel, for reports (the paper's Table 2).
@@ -487,4 +548,41 @@ pub fn function_range(model: &ErrorModel, f: ErrorFunction, samples: usize) -> F
     let datum = model.function_value(f, crate::gauge::axis_origin(&model.layout, f));
     let sign = if (max.1 - datum).abs() >= (min.1 - datum).abs() { 1.0 } else { -1.0 };
     FunctionRange { min: min.1, max: max.1, at_min_m: min.0, at_max_m: max.0, signed_range: sign * (max.1 - min.1) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ModelLayout;
+    use crate::repr::Representation;
+    use crate::topology::Topology;
+
+    /// X's positioning error a tent (0 at the ends, 1 um mid-way), measured at the ends of X
+    /// only: between them the readings cannot tell the tent from its chord (zero), and the
+    /// uncertainty there says so, `d^2 / 3` with `d` the tent's height above the chord, even where
+    /// the fit's own covariance is zero; at the ends nothing is added.
+    #[test]
+    fn between_the_positions_the_uncertainty_holds_the_chord() {
+        let travel = Travel::new([0.0, 1.0], [0.0, 1.0], [0.0, 1.0]);
+        let layout = ModelLayout::uniform(Topology::parse("FXYZ").unwrap(), travel, Representation::Table { nodes: 3 });
+        let mut model = ErrorModel::zero(layout);
+        let exx = ErrorFunction::parse("EXX").unwrap();
+        model.coeffs_mut(exx).copy_from_slice(&[0.0, 1e-6, 0.0]);
+        let n = model.layout.n_params;
+        let (cov, none) = (Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, 0));
+        let resolution = [AxisResolution::at(vec![0.0, 1.0]), AxisResolution::Everywhere, AxisResolution::Everywhere];
+        let unc = Uncertainty::new(&cov, &none).with_resolution(&resolution);
+        let p = Vector3::zeros();
+        for (q, height) in [(0.5, 1e-6), (0.25, 0.5e-6), (0.0, 0.0), (1.0, 0.0)] {
+            let want = height / 3f64.sqrt();
+            let s = function_sigma(&model, &unc, exx, q);
+            assert!((s - want).abs() <= 1e-15, "EXX at {q}: {s} against {want}");
+            let pe = predict(&model, &unc, &Point3::new(q, 0.3, 0.7), &p);
+            assert!((pe.cov[(0, 0)].sqrt() - want).abs() <= 1e-15, "x at {q}: {:?}", pe.cov);
+            assert_eq!((pe.cov[(1, 1)], pe.cov[(2, 2)]), (0.0, 0.0), "only X's error has a chord");
+        }
+        // A function straight between the positions has nothing to add.
+        model.coeffs_mut(exx).copy_from_slice(&[0.0, 0.5e-6, 1e-6]);
+        assert!(function_sigma(&model, &unc, exx, 0.4) <= 1e-15);
+    }
 }

@@ -125,6 +125,12 @@ pub fn predict_positioning(
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
     let start_scale = unc.interpolation_scale_at(&line.start);
+    // The variance the interpolation's shape adds along the line at a point
+    // ([`crate::predict::interpolation_shape_covariance`]), here and at the start.
+    let shape = |y: &Point3<f64>| {
+        (n.transpose() * crate::predict::interpolation_shape_covariance(model, unc.resolution, y, p) * n)[(0, 0)]
+    };
+    let start_shape = shape(&line.start);
     targets
         .iter()
         .map(|&s| {
@@ -133,7 +139,7 @@ pub fn predict_positioning(
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
             let scale = start_scale.max(unc.interpolation_scale_at(&x));
-            let var = if with_cov { quadratic_form(cov, &g) * scale } else { 0.0 };
+            let var = if with_cov { quadratic_form(cov, &g) * scale + shape(&x) + start_shape } else { 0.0 };
             let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
                 && !start_open
                 && !unc.leaves_open_at(&x);

@@ -248,8 +248,9 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
     require_determined(&back.model, &unc, &at_measured, &at_stops, &p, false).unwrap();
 
     // Between the stops of an axis whose readings bear the interpolation out, the prediction's
-    // covariance is the fit's times what leaving each stop out showed (read from the file), and
-    // at the stops it is the fit's.
+    // covariance is the fit's times what leaving each stop out showed (read from the file), plus
+    // the interpolation's shape (the fit against its chord between the stops, the same for
+    // both), and at the stops it is the fit's.
     let unit = back.resolution.clone().map(|r| r.with_interpolation_scale(1.0));
     let fit_only = predict::Uncertainty::new(&back.covariance, &back.undetermined).with_resolution(&unit);
     let borne: Vec<volcal::Axis> = volcal::Axis::ALL.into_iter().filter(|a| !contradicted.contains(a)).collect();
@@ -269,7 +270,11 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
         between[a.index()] = 0.5 * (q[q.len() / 2] + q[q.len() / 2 + 1]);
         let (scaled, fit) =
             (predict::predict(&back.model, &unc, &between, &p), predict::predict(&back.model, &fit_only, &between, &p));
-        assert!((scaled.cov - fit.cov * scale).norm() <= 1e-12 * fit.cov.norm(), "{a:?}: {scaled:?} {fit:?}");
+        let shape = predict::interpolation_shape_covariance(&back.model, &back.resolution, &between, &p);
+        assert!(
+            ((scaled.cov - shape) - (fit.cov - shape) * scale).norm() <= 1e-12 * fit.cov.norm(),
+            "{a:?}: {scaled:?} {fit:?}"
+        );
         let at = predict::predict(&back.model, &unc, &at_stops, &p);
         assert_eq!(at.cov, predict::predict(&back.model, &fit_only, &at_stops, &p).cov, "at the stops");
         let f = volcal::ErrorFunction::from_index(a.index() * 6);
@@ -277,7 +282,14 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
             predict::function_sigma(&back.model, &unc, f, between[a.index()]),
             predict::function_sigma(&back.model, &fit_only, f, between[a.index()]),
         );
-        assert!((s1 - s0 * scale.sqrt()).abs() <= 1e-12 * s0, "{}: {s1} vs {s0} x sqrt({scale})", f.name());
+        // The function against its chord between the two stops either side, a bound: `d^2 / 3`.
+        let q = between[a.index()];
+        let (qa, qb) = back.resolution[a.index()].neighbours(q).expect("between two stops");
+        let t = (q - qa) / (qb - qa);
+        let value = |q: f64| back.model.function_value(f, q);
+        let d2 = (value(q) - (value(qa) * (1.0 - t) + value(qb) * t)).powi(2) / 3.0;
+        let want = ((s0 * s0 - d2) * scale + d2).sqrt();
+        assert!((s1 - want).abs() <= 1e-12 * s0, "{}: {s1} vs {want} (fit {s0}, scale {scale})", f.name());
     }
 }
 
