@@ -157,7 +157,7 @@ pub fn interpolation_line(unc: &Uncertainty<'_>) -> String {
     if !borne.is_empty() {
         let _ = writeln!(
             out,
-            "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1).",
+            "Between the measured positions along {} the map is interpolated: the readings do not resolve a feature shorter than their step there (map column interpolated = 1). Nor do they tell the fit's curve from a straight run between two positions: the uncertainty there holds the difference as a bound (variance d^2 / 3).",
             borne.join(", ")
         );
     }
