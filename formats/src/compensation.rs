@@ -526,7 +526,7 @@ pub fn require_determined(
         } else if qs.iter().any(|&q| {
             let mut x = *point;
             x[a.index()] = q;
-            !predict::predict(model, unc, &x, probe).is_determined()
+            !predict::is_determined_at(model, unc, &x, probe)
         }) {
             missing.push(format!("the {} line", a.letter()));
         }

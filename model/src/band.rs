@@ -22,7 +22,7 @@
 //! gives the same `k`, bit for bit.
 
 use crate::halves::both;
-use crate::predict::{predict, propagate, PointError, Uncertainty, COVERAGE_K};
+use crate::predict::{is_determined_at, propagate, PointError, Uncertainty, COVERAGE_K};
 use crate::smoothing::factor_psd;
 use crate::ErrorModel;
 use faer::Mat;
@@ -77,7 +77,7 @@ pub fn simultaneous_band(
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
     for x in points {
         for p in offsets {
-            if !unc.determines_everywhere() && !predict(model, unc, x, p).is_determined() {
+            if !unc.determines_everywhere() && !is_determined_at(model, unc, x, p) {
                 continue;
             }
             let s = model.layout.sensitivity(x, p);

@@ -343,16 +343,30 @@ pub fn interpolation_shape_covariance(
     c
 }
 
+/// How much the error with sensitivity `s` depends on the undetermined directions
+/// ([`Uncertainty::share`]).
+fn undetermined_share(unc: &Uncertainty<'_>, s: &Sensitivity) -> f64 {
+    if !unc.has_undetermined() {
+        return 0.0;
+    }
+    let rows: Vec<Vec<(usize, f64)>> =
+        (0..3).map(|k| s.idx.iter().zip(&s.dedu).map(|(&i, d)| (i, d[k])).collect()).collect();
+    unc.share(rows.iter().map(|r| r.as_slice()))
+}
+
+/// Whether the data determine the error at `(x, p)`: what [`predict`]'s
+/// [`PointError::is_determined`] says, without forming the covariance (masks over a map).
+pub fn is_determined_at(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> bool {
+    if unc.leaves_open_at(x) {
+        return false;
+    }
+    !unc.has_undetermined() || undetermined_share(unc, &model.layout.sensitivity(x, p)) <= NOT_DETERMINED_ABOVE
+}
+
 /// Volumetric error and its covariance at `(x, p)`, and whether the data determine it.
 pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> PointError {
     let s = model.layout.sensitivity(x, p);
-    let undetermined = if unc.has_undetermined() {
-        let rows: Vec<Vec<(usize, f64)>> =
-            (0..3).map(|k| s.idx.iter().zip(&s.dedu).map(|(&i, d)| (i, d[k])).collect()).collect();
-        unc.share(rows.iter().map(|r| r.as_slice()))
-    } else {
-        0.0
-    };
+    let undetermined = undetermined_share(unc, &s);
     // Interpolated along some axis, whether along a contradicted one, and the largest scale of
     // the interpolations' variance: one pass over the axes.
     let (mut interpolated, mut between_contradicted, mut scale) = (false, false, None::<f64>);
@@ -415,7 +429,7 @@ pub fn max_error(model: &ErrorModel, unc: &Uncertainty<'_>, p: &Vector3<f64>, st
     let mut best = Point3::origin();
     let mut best_m = -1.0;
     let pts = grid(&travel, step);
-    let determined = |x: &Point3<f64>| unc.determines_everywhere() || predict(model, unc, x, p).is_determined();
+    let determined = |x: &Point3<f64>| unc.determines_everywhere() || is_determined_at(model, unc, x, p);
     let mask: Vec<bool> = pts.iter().map(determined).collect();
     let undetermined_points = mask.iter().filter(|d| !**d).count();
     let any = undetermined_points < pts.len();

@@ -51,9 +51,8 @@ pub fn log_volumetric_map(
     let step = longest / (POINTS_ALONG_LONGEST - 1.0);
     let all = predict::grid(&travel, step);
     // Arrows where the data determine the error; grey points where they do not.
-    let (grid, open): (Vec<Point3<f64>>, Vec<Point3<f64>>) = all
-        .into_iter()
-        .partition(|x| unc.determines_everywhere() || predict::predict(model, unc, x, probe).is_determined());
+    let (grid, open): (Vec<Point3<f64>>, Vec<Point3<f64>>) =
+        all.into_iter().partition(|x| unc.determines_everywhere() || predict::is_determined_at(model, unc, x, probe));
     if !open.is_empty() {
         rec.log_static(
             paths::MAP_UNDETERMINED,
