@@ -330,17 +330,24 @@ pub fn interpolation_shape_covariance(
     for a in Axis::ALL {
         let i = a.index();
         if let Some((qa, qb)) = resolution[i].neighbours(x[i]) {
-            let t = (x[i] - qa) / (qb - qa);
-            let at = |q: f64| {
+            let d = off_chord(x[i], (qa, qb), |q| {
                 let mut y = *x;
                 y[i] = q;
                 model.error(&y, p)
-            };
-            let d = model.error(x, p) - (at(qa) * (1.0 - t) + at(qb) * t);
+            });
             c += d * d.transpose() * CHORD_BOUND_VARIANCE;
         }
     }
     c
+}
+
+/// `value(q)` less its chord between `value(qa)` and `value(qb)`.
+fn off_chord<T>(q: f64, (qa, qb): (f64, f64), value: impl Fn(f64) -> T) -> T
+where
+    T: std::ops::Add<Output = T> + std::ops::Sub<Output = T> + std::ops::Mul<f64, Output = T>,
+{
+    let t = (q - qa) / (qb - qa);
+    value(q) - (value(qa) * (1.0 - t) + value(qb) * t)
 }
 
 /// How much the error with sensitivity `s` depends on the undetermined directions
@@ -520,10 +527,8 @@ pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunctio
     let r = &unc.resolution[f.axis.index()];
     let scale = r.interpolation_scale_at(q).unwrap_or(1.0);
     // The interpolation's shape ([`CHORD_BOUND_VARIANCE`]): the function against its chord.
-    let shape = r.neighbours(q).map_or(0.0, |(qa, qb)| {
-        let t = (q - qa) / (qb - qa);
-        let d =
-            model.function_value(f, q) - (model.function_value(f, qa) * (1.0 - t) + model.function_value(f, qb) * t);
+    let shape = r.neighbours(q).map_or(0.0, |ends| {
+        let d = off_chord(q, ends, |q| model.function_value(f, q));
         d * d * CHORD_BOUND_VARIANCE
     });
     (v * scale + shape).max(0.0).sqrt()

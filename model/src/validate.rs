@@ -125,10 +125,15 @@ pub fn predict_positioning(
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
     let start_scale = unc.interpolation_scale_at(&line.start);
-    // The variance the interpolation's shape adds along the line at a point
-    // ([`crate::predict::interpolation_shape_covariance`]), here and at the start.
+    // The interpolation's shape along the line at a point
+    // ([`crate::predict::interpolation_shape_covariance`]) as the standard uncertainty of its
+    // bound. At the target and at the start the two bounds are not independent (the same
+    // curve, perhaps the same interval): the deviation's bound is their sum, `(a + b)^2` in
+    // variance, which holds whatever their signs.
     let shape = |y: &Point3<f64>| {
         (n.transpose() * crate::predict::interpolation_shape_covariance(model, unc.resolution, y, p) * n)[(0, 0)]
+            .max(0.0)
+            .sqrt()
     };
     let start_shape = shape(&line.start);
     targets
@@ -139,7 +144,7 @@ pub fn predict_positioning(
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
             let scale = start_scale.max(unc.interpolation_scale_at(&x));
-            let var = if with_cov { quadratic_form(cov, &g) * scale + shape(&x) + start_shape } else { 0.0 };
+            let var = if with_cov { quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2) } else { 0.0 };
             let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
                 && !start_open
                 && !unc.leaves_open_at(&x);
