@@ -22,7 +22,7 @@
 //! gives the same `k`, bit for bit.
 
 use crate::halves::both;
-use crate::predict::{is_determined_at, propagate, PointError, Uncertainty, COVERAGE_K};
+use crate::predict::{is_determined_with, propagate, PointError, Uncertainty, COVERAGE_K};
 use crate::smoothing::factor_psd;
 use crate::ErrorModel;
 use faer::Mat;
@@ -77,10 +77,10 @@ pub fn simultaneous_band(
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
     for x in points {
         for p in offsets {
-            if !unc.determines_everywhere() && !is_determined_at(model, unc, x, p) {
+            let s = model.layout.sensitivity(x, p);
+            if !unc.determines_everywhere() && !is_determined_with(unc, x, &s) {
                 continue;
             }
-            let s = model.layout.sensitivity(x, p);
             let cov = propagate(&s, unc.covariance);
             for k in 0..3 {
                 // A component the gauge fixes (the datum at its origin) has no uncertainty.

@@ -326,19 +326,39 @@ pub fn interpolation_shape_covariance(
     x: &Point3<f64>,
     p: &Vector3<f64>,
 ) -> Matrix3<f64> {
-    let mut c = Matrix3::zeros();
-    for a in Axis::ALL {
+    chord_offsets(model, resolution, x, p).fold(Matrix3::zeros(), |c, d| c + d * d.transpose() * CHORD_BOUND_VARIANCE)
+}
+
+/// [`interpolation_shape_covariance`] projected on the unit direction `n`, `n^T C n`, without
+/// forming `C` (a validation line's deviation).
+pub fn interpolation_shape_variance_along(
+    model: &ErrorModel,
+    resolution: &[AxisResolution; 3],
+    x: &Point3<f64>,
+    p: &Vector3<f64>,
+    n: &Vector3<f64>,
+) -> f64 {
+    chord_offsets(model, resolution, x, p).map(|d| n.dot(&d).powi(2) * CHORD_BOUND_VARIANCE).sum()
+}
+
+/// For each axis along which `x` lies between two measured positions, the error at `x` less its
+/// chord between the errors at those positions (the other coordinates held).
+fn chord_offsets<'a>(
+    model: &'a ErrorModel,
+    resolution: &'a [AxisResolution; 3],
+    x: &'a Point3<f64>,
+    p: &'a Vector3<f64>,
+) -> impl Iterator<Item = Vector3<f64>> + 'a {
+    Axis::ALL.into_iter().filter_map(move |a| {
         let i = a.index();
-        if let Some((qa, qb)) = resolution[i].neighbours(x[i]) {
-            let d = off_chord(x[i], (qa, qb), |q| {
+        resolution[i].neighbours(x[i]).map(|(qa, qb)| {
+            off_chord(x[i], (qa, qb), |q| {
                 let mut y = *x;
                 y[i] = q;
                 model.error(&y, p)
-            });
-            c += d * d.transpose() * CHORD_BOUND_VARIANCE;
-        }
-    }
-    c
+            })
+        })
+    })
 }
 
 /// `value(q)` less its chord between `value(qa)` and `value(qb)`.
@@ -364,10 +384,15 @@ fn undetermined_share(unc: &Uncertainty<'_>, s: &Sensitivity) -> f64 {
 /// Whether the data determine the error at `(x, p)`: what [`predict`]'s
 /// [`PointError::is_determined`] says, without forming the covariance (masks over a map).
 pub fn is_determined_at(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> bool {
-    if unc.leaves_open_at(x) {
-        return false;
+    if !unc.has_undetermined() {
+        return !unc.leaves_open_at(x);
     }
-    !unc.has_undetermined() || undetermined_share(unc, &model.layout.sensitivity(x, p)) <= NOT_DETERMINED_ABOVE
+    is_determined_with(unc, x, &model.layout.sensitivity(x, p))
+}
+
+/// [`is_determined_at`] for a caller that already holds the point's sensitivity `s`.
+pub fn is_determined_with(unc: &Uncertainty<'_>, x: &Point3<f64>, s: &Sensitivity) -> bool {
+    !unc.leaves_open_at(x) && undetermined_share(unc, s) <= NOT_DETERMINED_ABOVE
 }
 
 /// Volumetric error and its covariance at `(x, p)`, and whether the data determine it.

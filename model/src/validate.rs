@@ -131,11 +131,9 @@ pub fn predict_positioning(
     // curve, perhaps the same interval): the deviation's bound is their sum, `(a + b)^2` in
     // variance, which holds whatever their signs.
     let shape = |y: &Point3<f64>| {
-        (n.transpose() * crate::predict::interpolation_shape_covariance(model, unc.resolution, y, p) * n)[(0, 0)]
-            .max(0.0)
-            .sqrt()
+        crate::predict::interpolation_shape_variance_along(model, unc.resolution, y, p, &n).max(0.0).sqrt()
     };
-    let start_shape = shape(&line.start);
+    let start_shape = if with_cov && !start_open { shape(&line.start) } else { 0.0 };
     targets
         .iter()
         .map(|&s| {
@@ -143,17 +141,18 @@ pub fn predict_positioning(
             let dev = n.dot(&(model.error(&x, p) - e0));
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
-            let scale = start_scale.max(unc.interpolation_scale_at(&x));
-            let var = if with_cov { quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2) } else { 0.0 };
             let determined = unc.share(std::iter::once(g.as_slice())) <= crate::predict::NOT_DETERMINED_ABOVE
                 && !start_open
                 && !unc.leaves_open_at(&x);
-            PositioningPoint {
-                s_m: s,
-                x,
-                deviation_m: dev,
-                sigma_m: if determined { var.max(0.0).sqrt() } else { f64::INFINITY },
-            }
+            let sigma_m = match (determined, with_cov) {
+                (false, _) => f64::INFINITY,
+                (true, false) => 0.0,
+                (true, true) => {
+                    let scale = start_scale.max(unc.interpolation_scale_at(&x));
+                    (quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2)).max(0.0).sqrt()
+                }
+            };
+            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m }
         })
         .collect()
 }
