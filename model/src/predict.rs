@@ -624,6 +624,13 @@ mod tests {
             let pe = predict(&model, &unc, &Point3::new(q, 0.3, 0.7), &p);
             assert!((pe.cov[(0, 0)].sqrt() - want).abs() <= 1e-15, "x at {q}: {:?}", pe.cov);
             assert_eq!((pe.cov[(1, 1)], pe.cov[(2, 2)]), (0.0, 0.0), "only X's error has a chord");
+            // Along a direction, the projection of the same covariance (a validation line).
+            let (x, dir) = (Point3::new(q, 0.3, 0.7), Vector3::new(0.6, 0.0, 0.8));
+            let along = interpolation_shape_variance_along(&model, &resolution, &x, &p, &dir);
+            let projected =
+                (dir.transpose() * interpolation_shape_covariance(&model, &resolution, &x, &p) * dir)[(0, 0)];
+            assert!((along - projected).abs() <= 1e-27, "{along} against {projected}");
+            assert!((along.sqrt() - 0.6 * want).abs() <= 1e-15, "{along} against (0.6 {want})^2");
         }
         // A function straight between the positions has nothing to add.
         model.coeffs_mut(exx).copy_from_slice(&[0.0, 0.5e-6, 1e-6]);
