@@ -342,17 +342,20 @@ pub fn interpolation_shape_variance_along(
 }
 
 /// For each axis along which `x` lies between two measured positions, the error at `x` less its
-/// chord between the errors at those positions (the other coordinates held).
+/// chord between the errors at those positions (the other coordinates held). The error at `x`
+/// is evaluated once, whichever axes it lies between the positions of.
 fn chord_offsets<'a>(
     model: &'a ErrorModel,
     resolution: &'a [AxisResolution; 3],
     x: &'a Point3<f64>,
     p: &'a Vector3<f64>,
 ) -> impl Iterator<Item = Vector3<f64>> + 'a {
+    let mut at_x = None;
     Axis::ALL.into_iter().filter_map(move |a| {
         let i = a.index();
-        resolution[i].neighbours(x[i]).map(|(qa, qb)| {
-            off_chord(x[i], (qa, qb), |q| {
+        resolution[i].neighbours(x[i]).map(|ends| {
+            let e = *at_x.get_or_insert_with(|| model.error(x, p));
+            off_chord(x[i], e, ends, |q| {
                 let mut y = *x;
                 y[i] = q;
                 model.error(&y, p)
@@ -361,13 +364,13 @@ fn chord_offsets<'a>(
     })
 }
 
-/// `value(q)` less its chord between `value(qa)` and `value(qb)`.
-fn off_chord<T>(q: f64, (qa, qb): (f64, f64), value: impl Fn(f64) -> T) -> T
+/// `at_q`, the value at `q`, less its chord between `value(qa)` and `value(qb)`.
+fn off_chord<T>(q: f64, at_q: T, (qa, qb): (f64, f64), value: impl Fn(f64) -> T) -> T
 where
     T: std::ops::Add<Output = T> + std::ops::Sub<Output = T> + std::ops::Mul<f64, Output = T>,
 {
     let t = (q - qa) / (qb - qa);
-    value(q) - (value(qa) * (1.0 - t) + value(qb) * t)
+    at_q - (value(qa) * (1.0 - t) + value(qb) * t)
 }
 
 /// How much the error with sensitivity `s` depends on the undetermined directions
@@ -553,7 +556,7 @@ pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunctio
     let scale = r.interpolation_scale_at(q).unwrap_or(1.0);
     // The interpolation's shape ([`CHORD_BOUND_VARIANCE`]): the function against its chord.
     let shape = r.neighbours(q).map_or(0.0, |ends| {
-        let d = off_chord(q, ends, |q| model.function_value(f, q));
+        let d = off_chord(q, model.function_value(f, q), ends, |q| model.function_value(f, q));
         d * d * CHORD_BOUND_VARIANCE
     });
     (v * scale + shape).max(0.0).sqrt()
