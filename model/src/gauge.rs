@@ -115,8 +115,8 @@ pub fn constraints(layout: &ModelLayout, gauge: Gauge) -> Mat<f64> {
 pub fn null_basis(layout: &ModelLayout) -> Mat<f64> {
     let n = layout.n_params;
     let mut out = Mat::<f64>::zeros(n, GAUGE_DIM);
-    let constant: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).fit(|_| 1.0)).collect();
-    let linear: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).fit(|q| q)).collect();
+    let constant: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).line(1.0, 0.0)).collect();
+    let linear: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).line(0.0, 1.0)).collect();
     let trans = |axis, comp| ErrorFunction { axis, motion: Motion::Translation, component: comp };
     let mut col = 0;
     // Adds `scale * shape` to function f in column col.

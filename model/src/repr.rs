@@ -310,6 +310,21 @@ impl Basis {
         g
     }
 
+    /// Coefficients of the straight line `a + b q`. A table holds it exactly in its values at the
+    /// nodes, with no system to solve (a simulator's truth tabulated every 0.5 mm has thousands
+    /// of nodes, and [`Basis::fit`]'s dense Gram factorisation of them took seconds); any other
+    /// representation gets the L2 projection ([`Basis::fit`]), exact to rounding for those that
+    /// hold lines.
+    pub fn line(&self, a: f64, b: f64) -> Vec<f64> {
+        match self.repr {
+            Representation::Table { nodes } => {
+                let m = (nodes - 1) as f64;
+                (0..nodes).map(|i| a + b * (self.lo + self.length() * i as f64 / m)).collect()
+            }
+            _ => self.fit(|q| a + b * q),
+        }
+    }
+
     /// L2 projection of `f` onto the basis over the travel. Exact when `f` is representable.
     pub fn fit(&self, f: impl Fn(f64) -> f64) -> Vec<f64> {
         let n = self.n_coeffs();
@@ -574,6 +589,18 @@ mod tests {
             }
         }
         assert!(Basis::new(Representation::Polynomial { degree: 4 }, 0.0, 1.0).interval_roughness_rows().is_none());
+    }
+
+    /// The line's coefficients are the L2 projection's, to rounding, for every representation.
+    #[test]
+    fn a_line_is_its_projection() {
+        for r in all_reprs() {
+            let b = Basis::new(r, -0.5, 0.2);
+            for (a, s) in [(1.0, 0.0), (0.0, 1.0), (-0.1, 3.0)] {
+                let (line, fit) = (b.line(a, s), b.fit(|q| a + s * q));
+                assert!(line.iter().zip(&fit).all(|(x, y)| (x - y).abs() < 1e-12), "{r:?}: {line:?} {fit:?}");
+            }
+        }
     }
 
     #[test]
