@@ -317,10 +317,8 @@ impl Basis {
     /// hold lines.
     pub fn line(&self, a: f64, b: f64) -> Vec<f64> {
         match self.repr {
-            Representation::Table { nodes } => {
-                let m = (nodes - 1) as f64;
-                (0..nodes).map(|i| a + b * (self.lo + self.length() * i as f64 / m)).collect()
-            }
+            // A table's nodes are its breakpoints.
+            Representation::Table { .. } => self.breakpoints().into_iter().map(|q| a + b * q).collect(),
             _ => self.fit(|q| a + b * q),
         }
     }
