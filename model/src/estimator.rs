@@ -2030,20 +2030,32 @@ const NOMINAL_FLOOR: f64 = 1e-10;
 /// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
 /// largest probe offset) or the axis coordinate (squareness), squared and weighted.
 fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], active: &[bool]) -> Vec<f64> {
+    use crate::axis::Axis;
     use crate::functions::{ErrorFunction, Motion, Squareness};
     let t = &layout.travel;
-    let diag = (t.length(crate::axis::Axis::X).powi(2)
-        + t.length(crate::axis::Axis::Y).powi(2)
-        + t.length(crate::axis::Axis::Z).powi(2))
-    .sqrt();
+    let diag = (t.length(Axis::X).powi(2) + t.length(Axis::Y).powi(2) + t.length(Axis::Z).powi(2)).sqrt();
     let reach = diag + obs.p.iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let typ = |f: ErrorFunction| if f.motion == Motion::Translation { 1.0 } else { reach };
+    // The six functions of an axis usually share one basis: its values are computed once.
+    let shared = Axis::ALL.map(|a| layout.shares_basis(a));
     let mut e = vec![0.0; layout.n_params];
     for i in obs.groups.iter().enumerate().filter(|(g, _)| active[*g]).flat_map(|(_, g)| g.range()) {
         let w = 1.0 / (sigma[i] * sigma[i]);
-        for f in ErrorFunction::all() {
-            let typ = if f.motion == Motion::Translation { 1.0 } else { reach };
-            let off = layout.offsets[f.index()];
-            layout.basis(f).visit(f.axis.coord(&obs.x[i]), false, |k, b| e[off + k] += w * (typ * b).powi(2));
+        for a in Axis::ALL {
+            let functions = (0..6).map(|m| ErrorFunction::from_index(a.index() * 6 + m));
+            let q = a.coord(&obs.x[i]);
+            if shared[a.index()] {
+                layout.bases[a.index() * 6].visit(q, false, |k, b| {
+                    for f in functions.clone() {
+                        e[layout.offsets[f.index()] + k] += w * (typ(f) * b).powi(2);
+                    }
+                });
+            } else {
+                for f in functions {
+                    let off = layout.offsets[f.index()];
+                    layout.basis(f).visit(q, false, |k, b| e[off + k] += w * (typ(f) * b).powi(2));
+                }
+            }
         }
         for s in Squareness::ALL {
             e[layout.squareness_index(s)] += w * s.axis().coord(&obs.x[i]).powi(2);
