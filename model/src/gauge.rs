@@ -115,8 +115,21 @@ pub fn constraints(layout: &ModelLayout, gauge: Gauge) -> Mat<f64> {
 pub fn null_basis(layout: &ModelLayout) -> Mat<f64> {
     let n = layout.n_params;
     let mut out = Mat::<f64>::zeros(n, GAUGE_DIM);
-    let constant: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).line(1.0, 0.0)).collect();
-    let linear: Vec<Vec<f64>> = ErrorFunction::all().iter().map(|&f| layout.basis(f).line(0.0, 1.0)).collect();
+    // Per function, the coefficients of a constant and of a line. The six functions of an axis
+    // usually share one basis, which is then projected once.
+    let mut projected: Vec<(&crate::repr::Basis, Vec<f64>, Vec<f64>)> = Vec::new();
+    let (constant, linear): (Vec<Vec<f64>>, Vec<Vec<f64>>) = ErrorFunction::all()
+        .iter()
+        .map(|&f| {
+            let b = layout.basis(f);
+            if let Some((_, c, l)) = projected.iter().find(|(p, ..)| *p == b) {
+                return (c.clone(), l.clone());
+            }
+            let (c, l) = (b.line(1.0, 0.0), b.line(0.0, 1.0));
+            projected.push((b, c.clone(), l.clone()));
+            (c, l)
+        })
+        .unzip();
     let trans = |axis, comp| ErrorFunction { axis, motion: Motion::Translation, component: comp };
     let mut col = 0;
     // Adds `scale * shape` to function f in column col.
