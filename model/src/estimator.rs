@@ -936,7 +936,7 @@ pub fn fit<'a>(
         effects,
         group_station,
         dir_owner,
-        ref_energy: reference_energy(layout, obs, &sigma, &active),
+        ref_energy: reference_energy(layout, obs, structure.as_ref(), &sigma, &active),
         active,
         sigma,
         structure,
@@ -2029,7 +2029,13 @@ const NOMINAL_FLOOR: f64 = 1e-10;
 /// Energy of each model column at its nominal first-order sensitivity: per reading, the basis
 /// value times 1 (translations), the reach of the machine (rotations: travel diagonal plus the
 /// largest probe offset) or the axis coordinate (squareness), squared and weighted.
-fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], active: &[bool]) -> Vec<f64> {
+fn reference_energy(
+    layout: &ModelLayout,
+    obs: &Observations,
+    structure: Option<&Structure>,
+    sigma: &[f64],
+    active: &[bool],
+) -> Vec<f64> {
     use crate::axis::Axis;
     use crate::functions::{ErrorFunction, Motion, Squareness};
     let t = &layout.travel;
@@ -2045,11 +2051,19 @@ fn reference_energy(layout: &ModelLayout, obs: &Observations, sigma: &[f64], act
             let functions = (0..6).map(|m| ErrorFunction::from_index(a.index() * 6 + m));
             let q = a.coord(&obs.x[i]);
             if shared[a.index()] {
-                layout.bases[a.index() * 6].visit(q, false, |k, b| {
+                let mut add = |k: usize, b: f64| {
                     for f in functions.clone() {
                         e[layout.offsets[f.index()] + k] += w * (typ(f) * b).powi(2);
                     }
-                });
+                };
+                match structure {
+                    // The values the solve keeps for every reading.
+                    Some(st) => {
+                        let first = st.first[i][a.index()];
+                        st.b(i, a.index()).iter().enumerate().for_each(|(k, &b)| add(first + k, b));
+                    }
+                    None => layout.bases[a.index() * 6].visit(q, false, add),
+                }
             } else {
                 for f in functions {
                     let off = layout.offsets[f.index()];
