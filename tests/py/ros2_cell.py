@@ -11,7 +11,9 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
 - logs every published state (stamp ns, the three axis positions and velocities) to --log as CSV;
 - plays faults after --fault-after seconds of motion: `missing` (joint y left out of the
   message), `nan` (joint y NaN), `stop` (no joint states for --stop-for seconds; negative:
-  never again), `stuck` (joint y stops following).
+  never again), `stuck` (joint y stops following);
+- drops the first --drop-first trajectories, as a controller whose subscription matched the
+  writer only after they were written does.
 
 It writes --ready once its publisher and subscription exist, and ends on SIGTERM/SIGINT.
 """
@@ -83,10 +85,14 @@ class Cell(Node):
         if self.log:
             self.log.write("stamp_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps\n")
         self.trajectories = 0
+        self.dropped = 0
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
     def on_trajectory(self, msg):
         now = time.monotonic()
+        if self.dropped < self.a.drop_first:
+            self.dropped += 1
+            return
         order = [msg.joint_names.index(j) for j in self.joints]
         pos, vel = self.traj.at(now)
         t = Trajectory(now, pos, vel)
@@ -149,6 +155,7 @@ def main():
     p.add_argument("--fault", default="none", choices=["none", "missing", "nan", "stop", "stuck"])
     p.add_argument("--fault-after", type=float, default=0.0)
     p.add_argument("--stop-for", type=float, default=-1.0)
+    p.add_argument("--drop-first", type=int, default=0)
     a = p.parse_args()
     rclpy.init()
     cell = Cell(a)
@@ -162,7 +169,7 @@ def main():
         rclpy.spin_once(cell, timeout_sec=0.05)
     if cell.log:
         cell.log.close()
-    print(f"cell: {cell.trajectories} trajectories followed", file=sys.stderr)
+    print(f"cell: {cell.trajectories} trajectories followed, {cell.dropped} dropped", file=sys.stderr)
     cell.destroy_node()
     rclpy.try_shutdown()
 

@@ -5,6 +5,11 @@
 //! when the axes have stayed within `position_tolerance_m` of the target for `settle_s`, and
 //! the latest coordinates latched on each trigger).
 //!
+//! A trajectory that the cell does not start to follow (joint states fresh, no axis moved by
+//! `position_tolerance_m` half a second after it went out) is taken as lost and sent again
+//! from where the cell is: a controller whose subscription matched our writer late drops what
+//! was written before.
+//!
 //! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
 //! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
 //! the joint, the topic and the figures. Joint states that stop arriving for `topic_timeout_s`
@@ -43,11 +48,21 @@ struct Motion {
     arrival: Arrival,
     probe: Vector3<f64>,
     speed_mps: f64,
-    /// When the trajectory went out, and the time it should take.
+    /// When the trajectory first went out, and the time it should take.
     sent_ns: i64,
     planned_s: f64,
     arrived: bool,
+    /// Where the cell was when the trajectory went out, and when it last went out.
+    from: Point3<f64>,
+    resent_ns: i64,
 }
+
+/// How long the cell may stay exactly where it was after a trajectory went out before the
+/// trajectory is taken as lost and sent again. A `joint_trajectory_controller` starts on its
+/// next update (1-10 ms); but a reader that matches our writer only after the sample was
+/// written drops it (volatile durability): the writer seeing the subscription does not mean
+/// that the subscription sees the writer.
+const RESEND_NS: i64 = 500_000_000;
 
 /// One coordinate sample of the cell.
 #[derive(Clone, Copy)]
@@ -141,6 +156,15 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     );
     let publish =
         |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
+    // Sends the trajectory from `from` to `to`; the time it should take.
+    let send = |from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
+        let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
+        let t = trajectory(&map, from, to, &limits, on_the_fly);
+        let planned_s =
+            t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
+        traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+        Ok(planned_s)
+    };
 
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut last: Option<Sample> = None;
@@ -176,24 +200,21 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             } else {
                 // New, or a retry of a motion that has not arrived (the trajectory may have
                 // been lost): the controller replaces its trajectory by this one.
-                let limits = MotionLimits { speed_mps: c.speed_mps, acceleration_mps2: acceleration };
-                let t = trajectory(&map, &s.position, &target, &limits, on_the_fly);
-                let planned_s = t
-                    .points
-                    .last()
-                    .map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
-                traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+                let planned_s = send(&s.position, &target, c.speed_mps)?;
                 if repeated {
                     log::info!("motion {}: the sequencer asks again; trajectory sent again", c.position_id);
                 }
+                let sent_ns = now_ns();
                 motion = Some(Motion {
                     id: c.position_id,
                     arrival: Arrival::new(target, tolerance, settle_s),
                     probe: Vector3::from(c.probe_offset_m),
                     speed_mps: c.speed_mps,
-                    sent_ns: now_ns(),
+                    sent_ns,
                     planned_s,
                     arrived: false,
+                    from: s.position,
+                    resent_ns: sent_ns,
                 });
             }
             pending = None;
@@ -250,6 +271,21 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             last = Some(sample);
         }
         let now = now_ns();
+        // A cell that has not moved at all, with fresh joint states, has not received the
+        // trajectory: send it again from where the cell is (the time limit still counts from
+        // the first sending).
+        if let (Some(m), Some(s)) = (&mut motion, &last) {
+            let unmoved = (s.position - m.from).amax() <= tolerance;
+            if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
+                send(&s.position, &m.arrival.target, m.speed_mps)?;
+                log::info!(
+                    "motion {}: the cell has not moved {:.1} s after the trajectory went out on {traj_topic}; trajectory sent again (a controller that matched late drops what was written before)",
+                    m.id,
+                    (now - m.resent_ns) as f64 * 1e-9
+                );
+                m.resent_ns = now;
+            }
+        }
         match &last {
             None if !waiting_reported && now - started > (topic_timeout * 1e9) as i64 => {
                 log::warn!(
