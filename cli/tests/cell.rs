@@ -217,16 +217,21 @@ fn joint_states_that_stop_pause_the_campaign_and_it_resumes() {
     assert_eq!(n, 72);
 }
 
-/// A trajectory lost on the way (here the cell drops the first one, as a controller whose
-/// subscription matched the writer late does) is sent again, and the campaign completes.
+/// Trajectories lost on the way (here the cell drops the first five, as a controller whose
+/// subscription matched the writer late, or never, does) are sent again, the writer is created
+/// anew after four, and the campaign completes.
 #[test]
 fn a_lost_trajectory_is_sent_again() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) = faulty_cell("cell-lost", &["--drop-first", "1"], &[]);
+    let (ok, out, n) = faulty_cell("cell-lost", &["--drop-first", "5"], &[]);
     assert!(ok, "{out}");
     assert!(out.contains("the cell has not moved") && out.contains("trajectory sent again"), "{out}");
+    for line in out.lines().filter(|l| l.contains("sent again") || l.contains("created anew")) {
+        eprintln!("{line}");
+    }
+    assert!(out.contains("trajectory writer created anew"), "{out}");
     assert!(out.contains("the recorder confirmed all 72 acquired points"), "{out}");
     assert_eq!(n, 72);
 }

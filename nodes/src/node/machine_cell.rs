@@ -8,7 +8,9 @@
 //! A trajectory that the cell does not start to follow (joint states fresh, no axis moved by
 //! `position_tolerance_m` half a second after it went out) is taken as lost and sent again
 //! from where the cell is: a controller whose subscription matched our writer late drops what
-//! was written before.
+//! was written before. After four such sendings in a row the trajectory writer is created anew
+//! (once per motion), for a subscription that never matched it. The time limit counts from the
+//! first sending, however often the trajectory goes out again.
 //!
 //! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
 //! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
@@ -35,6 +37,7 @@ use crate::backend::sim::{ActualReflector, SimWorld};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
+use ros2_client::Publisher;
 use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::{MachineCommand, MachinePosition, ReflectorTruth, Trigger};
 use volcal_msgs::sensor_msgs::msg::JointState;
@@ -52,9 +55,11 @@ struct Motion {
     sent_ns: i64,
     planned_s: f64,
     arrived: bool,
-    /// Where the cell was when the trajectory went out, and when it last went out.
+    /// Where the cell was when the trajectory went out, when it last went out, and how many
+    /// times in a row the cell has not moved after it went out.
     from: Point3<f64>,
     resent_ns: i64,
+    ignored: u32,
 }
 
 /// How long the cell may stay exactly where it was after a trajectory went out before the
@@ -63,6 +68,13 @@ struct Motion {
 /// written drops it (volatile durability): the writer seeing the subscription does not mean
 /// that the subscription sees the writer.
 const RESEND_NS: i64 = 500_000_000;
+
+/// After this many trajectories in a row that the cell has not started to follow although its
+/// controller's subscription is discovered, the trajectory writer is created anew once per
+/// motion. Seen on a loaded host: a Fast DDS subscription that never matched our writer (0
+/// trajectories received in 80 s) while our participant had matched it; a new writer is
+/// announced afresh.
+const NEW_WRITER_AFTER: u32 = 4;
 
 /// One coordinate sample of the cell.
 #[derive(Clone, Copy)]
@@ -143,7 +155,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
-    let traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
+    let mut traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
+    let traj_name = traj_topic.clone();
     let truth = match dry {
         Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
         None => None,
@@ -156,15 +169,16 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     );
     let publish =
         |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
-    // Sends the trajectory from `from` to `to`; the time it should take.
-    let send = |from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
-        let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
-        let t = trajectory(&map, from, to, &limits, on_the_fly);
-        let planned_s =
-            t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
-        traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
-        Ok(planned_s)
-    };
+    // Sends the trajectory from `from` to `to` on `traj`; the time it should take.
+    let send =
+        |traj: &Publisher<JointTrajectory>, from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
+            let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
+            let t = trajectory(&map, from, to, &limits, on_the_fly);
+            let planned_s =
+                t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
+            traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+            Ok(planned_s)
+        };
 
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut last: Option<Sample> = None;
@@ -194,16 +208,22 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 bail!("motion {}: speed {} m/s is not a positive number", c.position_id, c.speed_mps);
             }
             let repeated = motion.as_ref().is_some_and(|m| m.id == c.position_id && m.arrival.target == target);
-            if let Some(m) = motion.as_ref().filter(|m| repeated && m.arrived) {
-                // The sequencer retries: it missed the arrival, report it again.
-                publish(position_msg(s, Some(m), true, 0))?;
-            } else {
-                // New, or a retry of a motion that has not arrived (the trajectory may have
-                // been lost): the controller replaces its trajectory by this one.
-                let planned_s = send(&s.position, &target, c.speed_mps)?;
-                if repeated {
+            if let Some(m) = motion.as_mut().filter(|_| repeated) {
+                if m.arrived {
+                    // The sequencer retries: it missed the arrival, report it again.
+                    publish(position_msg(s, Some(m), true, 0))?;
+                } else {
+                    // A retry of a motion that has not arrived (the trajectory may have been
+                    // lost): the controller replaces its trajectory by this one. The time
+                    // limit still counts from the first sending, so that a cell that does not
+                    // follow is named, however often the sequencer asks.
+                    send(&traj, &s.position, &target, c.speed_mps)?;
                     log::info!("motion {}: the sequencer asks again; trajectory sent again", c.position_id);
+                    m.resent_ns = now_ns();
                 }
+            } else {
+                // A new motion.
+                let planned_s = send(&traj, &s.position, &target, c.speed_mps)?;
                 let sent_ns = now_ns();
                 motion = Some(Motion {
                     id: c.position_id,
@@ -215,6 +235,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                     arrived: false,
                     from: s.position,
                     resent_ns: sent_ns,
+                    ignored: 0,
                 });
             }
             pending = None;
@@ -277,7 +298,17 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         if let (Some(m), Some(s)) = (&mut motion, &last) {
             let unmoved = (s.position - m.from).amax() <= tolerance;
             if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
-                send(&s.position, &m.arrival.target, m.speed_mps)?;
+                m.ignored += 1;
+                if m.ignored == NEW_WRITER_AFTER {
+                    traj = node.publisher::<JointTrajectory>(&traj_name, qos::commands())?;
+                    log::warn!(
+                        "motion {}: the cell has not followed {} trajectories over {:.1} s although its controller's subscription on {traj_topic} is discovered; trajectory writer created anew (a subscription that never matched our writer)",
+                        m.id,
+                        m.ignored,
+                        (now - m.sent_ns) as f64 * 1e-9
+                    );
+                }
+                send(&traj, &s.position, &m.arrival.target, m.speed_mps)?;
                 log::info!(
                     "motion {}: the cell has not moved {:.1} s after the trajectory went out on {traj_topic}; trajectory sent again (a controller that matched late drops what was written before)",
                     m.id,
