@@ -8,9 +8,8 @@
 //! A trajectory that the cell does not start to follow (joint states fresh, no axis moved by
 //! `position_tolerance_m` half a second after it went out) is taken as lost and sent again
 //! from where the cell is: a controller whose subscription matched our writer late drops what
-//! was written before. After four such sendings in a row the trajectory writer is created anew
-//! (once per motion), for a subscription that never matched it. The time limit counts from the
-//! first sending, however often the trajectory goes out again.
+//! was written before. The time limit counts from the first sending, however often the
+//! trajectory goes out again.
 //!
 //! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
 //! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
@@ -55,11 +54,9 @@ struct Motion {
     sent_ns: i64,
     planned_s: f64,
     arrived: bool,
-    /// Where the cell was when the trajectory went out, when it last went out, and how many
-    /// times in a row the cell has not moved after it went out.
+    /// Where the cell was when the trajectory went out, and when it last went out.
     from: Point3<f64>,
     resent_ns: i64,
-    ignored: u32,
 }
 
 /// How long the cell may stay exactly where it was after a trajectory went out before the
@@ -68,13 +65,6 @@ struct Motion {
 /// written drops it (volatile durability): the writer seeing the subscription does not mean
 /// that the subscription sees the writer.
 const RESEND_NS: i64 = 500_000_000;
-
-/// After this many trajectories in a row that the cell has not started to follow although its
-/// controller's subscription is discovered, the trajectory writer is created anew once per
-/// motion. Seen on a loaded host: a Fast DDS subscription that never matched our writer (0
-/// trajectories received in 80 s) while our participant had matched it; a new writer is
-/// announced afresh.
-const NEW_WRITER_AFTER: u32 = 4;
 
 /// One coordinate sample of the cell.
 #[derive(Clone, Copy)]
@@ -155,8 +145,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
-    let mut traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
-    let traj_name = traj_topic.clone();
+    let traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
     let truth = match dry {
         Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
         None => None,
@@ -235,7 +224,6 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                     arrived: false,
                     from: s.position,
                     resent_ns: sent_ns,
-                    ignored: 0,
                 });
             }
             pending = None;
@@ -298,16 +286,6 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         if let (Some(m), Some(s)) = (&mut motion, &last) {
             let unmoved = (s.position - m.from).amax() <= tolerance;
             if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
-                m.ignored += 1;
-                if m.ignored == NEW_WRITER_AFTER {
-                    traj = node.publisher::<JointTrajectory>(&traj_name, qos::commands())?;
-                    log::warn!(
-                        "motion {}: the cell has not followed {} trajectories over {:.1} s although its controller's subscription on {traj_topic} is discovered; trajectory writer created anew (a subscription that never matched our writer)",
-                        m.id,
-                        m.ignored,
-                        (now - m.sent_ns) as f64 * 1e-9
-                    );
-                }
                 send(&traj, &s.position, &m.arrival.target, m.speed_mps)?;
                 log::info!(
                     "motion {}: the cell has not moved {:.1} s after the trajectory went out on {traj_topic}; trajectory sent again (a controller that matched late drops what was written before)",
