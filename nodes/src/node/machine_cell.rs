@@ -36,7 +36,6 @@ use crate::backend::sim::{ActualReflector, SimWorld};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
-use ros2_client::Publisher;
 use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::{MachineCommand, MachinePosition, ReflectorTruth, Trigger};
 use volcal_msgs::sensor_msgs::msg::JointState;
@@ -158,16 +157,15 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     );
     let publish =
         |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
-    // Sends the trajectory from `from` to `to` on `traj`; the time it should take.
-    let send =
-        |traj: &Publisher<JointTrajectory>, from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
-            let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
-            let t = trajectory(&map, from, to, &limits, on_the_fly);
-            let planned_s =
-                t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
-            traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
-            Ok(planned_s)
-        };
+    // Sends the trajectory from `from` to `to`; the time it should take.
+    let send = |from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
+        let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
+        let t = trajectory(&map, from, to, &limits, on_the_fly);
+        let planned_s =
+            t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
+        traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+        Ok(planned_s)
+    };
 
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut last: Option<Sample> = None;
@@ -206,13 +204,13 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                     // lost): the controller replaces its trajectory by this one. The time
                     // limit still counts from the first sending, so that a cell that does not
                     // follow is named, however often the sequencer asks.
-                    send(&traj, &s.position, &target, c.speed_mps)?;
+                    send(&s.position, &target, c.speed_mps)?;
                     log::info!("motion {}: the sequencer asks again; trajectory sent again", c.position_id);
                     m.resent_ns = now_ns();
                 }
             } else {
                 // A new motion.
-                let planned_s = send(&traj, &s.position, &target, c.speed_mps)?;
+                let planned_s = send(&s.position, &target, c.speed_mps)?;
                 let sent_ns = now_ns();
                 motion = Some(Motion {
                     id: c.position_id,
@@ -286,7 +284,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         if let (Some(m), Some(s)) = (&mut motion, &last) {
             let unmoved = (s.position - m.from).amax() <= tolerance;
             if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
-                send(&traj, &s.position, &m.arrival.target, m.speed_mps)?;
+                send(&s.position, &m.arrival.target, m.speed_mps)?;
                 log::info!(
                     "motion {}: the cell has not moved {:.1} s after the trajectory went out on {traj_topic}; trajectory sent again (a controller that matched late drops what was written before)",
                     m.id,
