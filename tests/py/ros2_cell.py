@@ -13,7 +13,10 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   message), `nan` (joint y NaN), `stop` (no joint states for --stop-for seconds; negative:
   never again), `stuck` (joint y stops following);
 - drops the first --drop-first trajectories, as a controller whose subscription matched the
-  writer only after they were written does.
+  writer only after they were written does;
+- writes to stderr when its discovery sees trajectory writers come or go and when its
+  subscription matches them, and at the end how many trajectories it followed and dropped (the
+  tests append it to their failure messages).
 
 It writes --ready once its publisher and subscription exist, and ends on SIGTERM/SIGINT.
 """
@@ -86,6 +89,8 @@ class Cell(Node):
             self.log.write("stamp_ns,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps\n")
         self.trajectories = 0
         self.dropped = 0
+        self.writers = (0, 0)
+        self.ticks = 0
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
     def on_trajectory(self, msg):
@@ -114,8 +119,24 @@ class Cell(Node):
             return None
         return a.fault
 
+    def watch_writers(self, now):
+        """Logs when this participant's discovery sees the trajectory writers come and go, and
+        when its subscription matches them (why a trajectory was or was not received)."""
+        seen = (len(self.get_publishers_info_by_topic(self.a.traj_topic)), self.sub.get_publisher_count())
+        if seen != self.writers:
+            self.writers = seen
+            print(
+                f"cell: {now - self.t_start:.2f} s: {seen[0]} writer(s) discovered on {self.a.traj_topic}, "
+                f"{seen[1]} matched by the subscription; {self.trajectories + self.dropped} trajectories received",
+                file=sys.stderr,
+                flush=True,
+            )
+
     def tick(self):
         now = time.monotonic()
+        self.ticks += 1
+        if self.ticks % 20 == 0:
+            self.watch_writers(now)
         pos, vel = self.traj.at(now - self.a.lag)
         fault = self.fault(now)
         if fault == "stop":

@@ -9,7 +9,13 @@
 //! `position_tolerance_m` half a second after it went out) is taken as lost and sent again
 //! from where the cell is: a controller whose subscription matched our writer late drops what
 //! was written before. The time limit counts from the first sending, however often the
-//! trajectory goes out again.
+//! trajectory goes out again. After [`SECOND_WRITER_AFTER`] sendings that the cell has not
+//! followed, a second writer is announced on the topic and every trajectory goes out on both:
+//! a Fast DDS subscription has been seen (about once in a hundred campaigns under load) never to
+//! discover our first writer although it discovered our other endpoints, and a new writer is a
+//! new announcement. The first writer is kept: it may be the one the controller hears. A
+//! controller that hears both receives each trajectory twice, a few milliseconds apart; it
+//! replaces the first by the second, the same motion from where the axes are.
 //!
 //! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
 //! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
@@ -36,6 +42,7 @@ use crate::backend::sim::{ActualReflector, SimWorld};
 use crate::ros::{now_ns, qos, shutdown, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
+use ros2_client::Publisher;
 use volcal_bag::pairing::trigger_type;
 use volcal_msgs::msg::{MachineCommand, MachinePosition, ReflectorTruth, Trigger};
 use volcal_msgs::sensor_msgs::msg::JointState;
@@ -53,9 +60,10 @@ struct Motion {
     sent_ns: i64,
     planned_s: f64,
     arrived: bool,
-    /// Where the cell was when the trajectory went out, and when it last went out.
+    /// Where the cell was when the trajectory went out, when it last went out, and how often.
     from: Point3<f64>,
     resent_ns: i64,
+    sendings: u32,
 }
 
 /// How long the cell may stay exactly where it was after a trajectory went out before the
@@ -64,6 +72,12 @@ struct Motion {
 /// written drops it (volatile durability): the writer seeing the subscription does not mean
 /// that the subscription sees the writer.
 const RESEND_NS: i64 = 500_000_000;
+
+/// How many sendings of one motion the cell may leave unfollowed (one second of
+/// [`RESEND_NS`]) before a second trajectory writer is announced: early enough that the new
+/// writer is discovered within the shortest time limits (a motion's time plus
+/// `motion_timeout_s`).
+const SECOND_WRITER_AFTER: u32 = 2;
 
 /// One coordinate sample of the cell.
 #[derive(Clone, Copy)]
@@ -144,12 +158,12 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
-    let traj = node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?;
+    let mut writers = vec![node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?];
     let truth = match dry {
         Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
         None => None,
     };
-    let (js_topic, traj_topic) = (node.resolve(&js_topic), node.resolve(&traj_topic));
+    let (js_topic, traj_param, traj_topic) = (node.resolve(&js_topic), traj_topic.clone(), node.resolve(&traj_topic));
     log::info!(
         "ros2_control cell: joints {} (x, y, z) from {js_topic}, trajectories to {traj_topic}{}",
         map.names.join(", "),
@@ -157,14 +171,16 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     );
     let publish =
         |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
-    // Sends the trajectory from `from` to `to`; the time it should take.
-    let send = |from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
+    // Sends the trajectory from `from` to `to` on every trajectory writer; the time it should take.
+    let send = |writers: &[Publisher<JointTrajectory>], from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| {
         let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
         let t = trajectory(&map, from, to, &limits, on_the_fly);
         let planned_s =
             t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
-        traj.publish(t).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
-        Ok(planned_s)
+        for w in writers {
+            w.publish(t.clone()).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+        }
+        Ok::<f64, anyhow::Error>(planned_s)
     };
 
     let idle_ns = (1e9 / idle_rate) as i64;
@@ -204,13 +220,14 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                     // lost): the controller replaces its trajectory by this one. The time
                     // limit still counts from the first sending, so that a cell that does not
                     // follow is named, however often the sequencer asks.
-                    send(&s.position, &target, c.speed_mps)?;
+                    send(&writers, &s.position, &target, c.speed_mps)?;
                     log::info!("motion {}: the sequencer asks again; trajectory sent again", c.position_id);
                     m.resent_ns = now_ns();
+                    m.sendings += 1;
                 }
             } else {
                 // A new motion.
-                let planned_s = send(&s.position, &target, c.speed_mps)?;
+                let planned_s = send(&writers, &s.position, &target, c.speed_mps)?;
                 let sent_ns = now_ns();
                 motion = Some(Motion {
                     id: c.position_id,
@@ -222,6 +239,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                     arrived: false,
                     from: s.position,
                     resent_ns: sent_ns,
+                    sendings: 1,
                 });
             }
             pending = None;
@@ -284,13 +302,22 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         if let (Some(m), Some(s)) = (&mut motion, &last) {
             let unmoved = (s.position - m.from).amax() <= tolerance;
             if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
-                send(&s.position, &m.arrival.target, m.speed_mps)?;
+                if writers.len() == 1 && m.sendings >= SECOND_WRITER_AFTER {
+                    writers.push(node.publisher::<JointTrajectory>(&traj_param, qos::commands())?);
+                    log::warn!(
+                        "motion {}: the cell has not followed {} sendings of the trajectory on {traj_topic}: a second writer is announced there, and trajectories go out on both (a subscription that has not discovered our first writer discovers the new one)",
+                        m.id,
+                        m.sendings
+                    );
+                }
+                send(&writers, &s.position, &m.arrival.target, m.speed_mps)?;
                 log::info!(
                     "motion {}: the cell has not moved {:.1} s after the trajectory went out on {traj_topic}; trajectory sent again (a controller that matched late drops what was written before)",
                     m.id,
                     (now - m.resent_ns) as f64 * 1e-9
                 );
                 m.resent_ns = now;
+                m.sendings += 1;
             }
         }
         match &last {
@@ -314,8 +341,18 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             if !m.arrived && !stalled && now > limit {
                 let off = m.arrival.offsets(&s.position);
                 let worst = (0..3).max_by(|&a, &b| off[a].abs().total_cmp(&off[b].abs())).unwrap_or(0);
+                // A cell that never moved did not receive (or did not accept) any of the
+                // trajectories: say so, it is a different fault from an axis that stops.
+                let unmoved = if (s.position - m.from).amax() <= tolerance {
+                    format!(
+                        "; the cell has not moved since the first of the {} trajectories sent: its controller did not receive or did not accept them (does its subscription to {traj_topic} match our writer, and does it accept the joint names?)",
+                        m.sendings
+                    )
+                } else {
+                    String::new()
+                };
                 bail!(
-                    "motion {} not reached: joint {:?} (axis {}) is at {:.6} m, {:.1} um from its target {:.6} m, {:.1} s after the trajectory went out on {traj_topic} (planned {:.1} s at {} m/s, position_tolerance_m {tolerance})",
+                    "motion {} not reached: joint {:?} (axis {}) is at {:.6} m, {:.1} um from its target {:.6} m, {:.1} s after the trajectory went out on {traj_topic} (planned {:.1} s at {} m/s, position_tolerance_m {tolerance}){unmoved}",
                     m.id,
                     map.names[worst],
                     ["x", "y", "z"][worst],
