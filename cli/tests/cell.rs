@@ -193,7 +193,11 @@ fn a_joint_missing_from_the_joint_states_is_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) = faulty_cell("cell-missing", &["--fault", "missing", "--fault-after", "2"], &[]);
+    let (ok, out, n) = faulty_cell(
+        "cell-missing",
+        &["--fault", "missing", "--fault-after", "2", "--fault-after-trajectories", "25"],
+        &[],
+    );
     assert!(!ok, "the campaign must not end as a success:\n{out}");
     assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) is missing from the joint state"), "{out}");
     eprintln!("missing joint: {n} pairs kept in the bag");
@@ -205,7 +209,8 @@ fn nan_positions_are_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) = faulty_cell("cell-nan", &["--fault", "nan", "--fault-after", "2"], &[]);
+    let (ok, out, n) =
+        faulty_cell("cell-nan", &["--fault", "nan", "--fault-after", "2", "--fault-after-trajectories", "25"], &[]);
     assert!(!ok, "{out}");
     assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) reports position NaN"), "{out}");
     assert!(n > 0, "the pairs recorded before the fault are kept:\n{out}");
@@ -249,8 +254,11 @@ fn a_target_never_reached_is_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) =
-        faulty_cell("cell-stuck", &["--fault", "stuck", "--fault-after", "2"], &["motion_timeout_s:=2.0"]);
+    let (ok, out, n) = faulty_cell(
+        "cell-stuck",
+        &["--fault", "stuck", "--fault-after", "2", "--fault-after-trajectories", "25"],
+        &["motion_timeout_s:=2.0"],
+    );
     assert!(!ok, "{out}");
     assert!(out.contains("not reached: joint \"gantry_y_joint\" (axis y)"), "{out}");
     assert!(n > 0, "the pairs recorded before the fault are kept:\n{out}");

@@ -9,7 +9,9 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   cubic Hermite between points when velocities are given (linear otherwise), hold after the
   last point; the joints follow the interpolated setpoint --lag seconds late;
 - logs every published state (stamp ns, the three axis positions and velocities) to --log as CSV;
-- plays faults after --fault-after seconds of motion: `missing` (joint y left out of the
+- plays faults after --fault-after seconds of motion and --fault-after-trajectories trajectories
+  followed (both; the count makes the campaign's progress at the fault independent of the
+  host's load): `missing` (joint y left out of the
   message), `nan` (joint y NaN), `stop` (no joint states for --stop-for seconds; negative:
   never again), `stuck` (joint y stops following);
 - drops the first --drop-first trajectories, as a controller whose subscription matched the
@@ -90,6 +92,7 @@ class Cell(Node):
         self.trajectories = 0
         self.dropped = 0
         self.writers = (0, 0)
+        self.fault_start = None
         self.ticks = 0
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
@@ -113,9 +116,13 @@ class Cell(Node):
 
     def fault(self, now):
         a = self.a
-        if a.fault == "none" or self.first_motion is None or now - self.first_motion < a.fault_after:
+        if a.fault == "none" or self.first_motion is None:
             return None
-        if a.fault == "stop" and a.stop_for >= 0 and now - self.first_motion > a.fault_after + a.stop_for:
+        if self.fault_start is None:
+            if now - self.first_motion < a.fault_after or self.trajectories < a.fault_after_trajectories:
+                return None
+            self.fault_start = now
+        if a.fault == "stop" and a.stop_for >= 0 and now - self.fault_start > a.stop_for:
             return None
         return a.fault
 
@@ -175,6 +182,7 @@ def main():
     p.add_argument("--ready", default="")
     p.add_argument("--fault", default="none", choices=["none", "missing", "nan", "stop", "stuck"])
     p.add_argument("--fault-after", type=float, default=0.0)
+    p.add_argument("--fault-after-trajectories", type=int, default=0)
     p.add_argument("--stop-for", type=float, default=-1.0)
     p.add_argument("--drop-first", type=int, default=0)
     a = p.parse_args()
