@@ -177,6 +177,11 @@ fn on_the_fly_campaign_on_an_rclpy_cell() {
     solves_to_truth(&bag, &truth, &dir);
 }
 
+/// When the cell's faults start: after 2 s of motion and 25 trajectories followed, so that the
+/// campaign has recorded some points at the fault whatever the host's load (about 4 points at
+/// 2 s unloaded, 0 to 4 under load; 6 at 25 trajectories).
+const FAULT_AT: &[&str] = &["--fault-after", "2", "--fault-after-trajectories", "25"];
+
 /// Runs a very short campaign (72 points) on a cell playing a fault; returns the launch's status and output,
 /// and the pairs recorded.
 fn faulty_cell(name: &str, cell_args: &[&str], launch_args: &[&str]) -> (bool, String, usize) {
@@ -193,11 +198,7 @@ fn a_joint_missing_from_the_joint_states_is_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) = faulty_cell(
-        "cell-missing",
-        &["--fault", "missing", "--fault-after", "2", "--fault-after-trajectories", "25"],
-        &[],
-    );
+    let (ok, out, n) = faulty_cell("cell-missing", &[&["--fault", "missing"], FAULT_AT].concat(), &[]);
     assert!(!ok, "the campaign must not end as a success:\n{out}");
     assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) is missing from the joint state"), "{out}");
     eprintln!("missing joint: {n} pairs kept in the bag");
@@ -209,8 +210,7 @@ fn nan_positions_are_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) =
-        faulty_cell("cell-nan", &["--fault", "nan", "--fault-after", "2", "--fault-after-trajectories", "25"], &[]);
+    let (ok, out, n) = faulty_cell("cell-nan", &[&["--fault", "nan"], FAULT_AT].concat(), &[]);
     assert!(!ok, "{out}");
     assert!(out.contains("/joint_states: joint \"gantry_y_joint\" (axis y) reports position NaN"), "{out}");
     assert!(n > 0, "the pairs recorded before the fault are kept:\n{out}");
@@ -254,11 +254,8 @@ fn a_target_never_reached_is_named() {
     if rclpy_python().is_none() {
         return;
     }
-    let (ok, out, n) = faulty_cell(
-        "cell-stuck",
-        &["--fault", "stuck", "--fault-after", "2", "--fault-after-trajectories", "25"],
-        &["motion_timeout_s:=2.0"],
-    );
+    let (ok, out, n) =
+        faulty_cell("cell-stuck", &[&["--fault", "stuck"], FAULT_AT].concat(), &["motion_timeout_s:=2.0"]);
     assert!(!ok, "{out}");
     assert!(out.contains("not reached: joint \"gantry_y_joint\" (axis y)"), "{out}");
     assert!(n > 0, "the pairs recorded before the fault are kept:\n{out}");

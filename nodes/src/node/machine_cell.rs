@@ -73,6 +73,14 @@ struct Motion {
 /// that the subscription sees the writer.
 const RESEND_NS: i64 = 500_000_000;
 
+impl Motion {
+    /// Whether the cell at `position` is still where it was when the trajectory first went out:
+    /// then it has received (or accepted) none of the sendings.
+    fn unmoved(&self, position: &Point3<f64>, tolerance_m: f64) -> bool {
+        (position - self.from).amax() <= tolerance_m
+    }
+}
+
 /// How many sendings of one motion the cell may leave unfollowed (one second of
 /// [`RESEND_NS`]) before a second trajectory writer is announced: early enough that the new
 /// writer is discovered within the shortest time limits (a motion's time plus
@@ -172,16 +180,17 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let publish =
         |m: MachinePosition| out.publish(m).map_err(|e| anyhow!("publish {}: {e:?}", topics::MACHINE_POSITION));
     // Sends the trajectory from `from` to `to` on every trajectory writer; the time it should take.
-    let send = |writers: &[Publisher<JointTrajectory>], from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| {
-        let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
-        let t = trajectory(&map, from, to, &limits, on_the_fly);
-        let planned_s =
-            t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
-        for w in writers {
-            w.publish(t.clone()).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
-        }
-        Ok::<f64, anyhow::Error>(planned_s)
-    };
+    let send =
+        |writers: &[Publisher<JointTrajectory>], from: &Point3<f64>, to: &Point3<f64>, speed_mps: f64| -> Result<f64> {
+            let limits = MotionLimits { speed_mps, acceleration_mps2: acceleration };
+            let t = trajectory(&map, from, to, &limits, on_the_fly);
+            let planned_s =
+                t.points.last().map_or(0.0, |p| p.time_from_start.sec as f64 + p.time_from_start.nanosec as f64 * 1e-9);
+            for w in writers {
+                w.publish(t.clone()).map_err(|e| anyhow!("publish {traj_topic}: {e:?}"))?;
+            }
+            Ok(planned_s)
+        };
 
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut last: Option<Sample> = None;
@@ -300,8 +309,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         // trajectory: send it again from where the cell is (the time limit still counts from
         // the first sending).
         if let (Some(m), Some(s)) = (&mut motion, &last) {
-            let unmoved = (s.position - m.from).amax() <= tolerance;
-            if !m.arrived && !stalled && unmoved && s.received_ns > m.resent_ns + RESEND_NS {
+            if !m.arrived && !stalled && m.unmoved(&s.position, tolerance) && s.received_ns > m.resent_ns + RESEND_NS {
                 if writers.len() == 1 && m.sendings >= SECOND_WRITER_AFTER {
                     writers.push(node.publisher::<JointTrajectory>(&traj_param, qos::commands())?);
                     log::warn!(
@@ -343,7 +351,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 let worst = (0..3).max_by(|&a, &b| off[a].abs().total_cmp(&off[b].abs())).unwrap_or(0);
                 // A cell that never moved did not receive (or did not accept) any of the
                 // trajectories: say so, it is a different fault from an axis that stops.
-                let unmoved = if (s.position - m.from).amax() <= tolerance {
+                let unmoved = if m.unmoved(&s.position, tolerance) {
                     format!(
                         "; the cell has not moved since the first of the {} trajectories sent: its controller did not receive or did not accept them (does its subscription to {traj_topic} match our writer, and does it accept the joint names?)",
                         m.sendings
