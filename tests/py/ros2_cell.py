@@ -134,10 +134,18 @@ class Cell(Node):
             self.writers = seen
             print(
                 f"cell: {now - self.t_start:.2f} s: {seen[0]} writer(s) discovered on {self.a.traj_topic}, "
-                f"{seen[1]} matched by the subscription; {self.trajectories + self.dropped} trajectories received",
+                f"{seen[1]} matched by the subscription; {self.trajectories + self.dropped} trajectories received; "
+                f"writers discovered on the other topics: {self.writers_elsewhere()}",
                 file=sys.stderr,
                 flush=True,
             )
+
+    def writers_elsewhere(self):
+        """Writers this participant's discovery knows on every other topic: which of a
+        participant's announcements it has (a trajectory writer never discovered, were the
+        announcements of that participant's other writers lost with it?)."""
+        topics = sorted(t for t, _ in self.get_topic_names_and_types() if t != self.a.traj_topic)
+        return ", ".join(f"{t} {len(self.get_publishers_info_by_topic(t))}" for t in topics) or "none"
 
     def tick(self):
         now = time.monotonic()

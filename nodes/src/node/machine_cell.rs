@@ -13,7 +13,13 @@
 //! followed, a second writer is announced on the topic and every trajectory goes out on both:
 //! a Fast DDS subscription has been seen (about once in a hundred campaigns under load) never to
 //! discover our first writer although it discovered our other endpoints, and a new writer is a
-//! new announcement. The first writer is kept: it may be the one the controller hears. A
+//! new announcement. Captured on the wire (two such campaigns, every packet of the domain): the
+//! cell's Fast DDS participant received the first writer's announcement (its SEDP `DATA(w)`,
+//! the same bytes as in a passing campaign but for the ports) and acknowledged it, and still
+//! its subscription never matched that writer; the second writer's announcement matched. The
+//! loss is in the receiving participant's endpoint discovery, where no resending of ours can
+//! reach (the announcement counts as delivered); only a new announcement does. The first
+//! writer is kept: it may be the one the controller hears. A
 //! controller that hears both receives each trajectory twice, a few milliseconds apart; it
 //! replaces the first by the second, the same motion from where the axes are.
 //!
