@@ -249,6 +249,24 @@ fn a_lost_trajectory_is_sent_again() {
     assert_eq!(n, 72);
 }
 
+/// A joint-state publisher that never sends to our first subscription (here the cell holds its
+/// joint states until it sees two subscriptions, as a Fast DDS publisher that acknowledged our
+/// reader's announcement but never matched it does): after a second of silence from a
+/// discovered publisher a second subscription is announced, the states that reach both are
+/// taken once, and the campaign completes.
+#[test]
+fn a_silent_joint_state_publisher_gets_a_second_subscription() {
+    if rclpy_python().is_none() {
+        return;
+    }
+    let (ok, out, n) = faulty_cell("cell-silent", &["--js-after-readers", "2"], &[]);
+    assert!(ok, "{out}");
+    assert!(out.contains("a second subscription is announced"), "{out}");
+    assert!(out.contains("joint states start"), "the cell saw both subscriptions:\n{out}");
+    assert!(out.contains("the recorder confirmed all 72 acquired points"), "{out}");
+    assert_eq!(n, 72);
+}
+
 #[test]
 fn a_target_never_reached_is_named() {
     if rclpy_python().is_none() {

@@ -16,6 +16,9 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   never again), `stuck` (joint y stops following);
 - drops the first --drop-first trajectories, as a controller whose subscription matched the
   writer only after they were written does;
+- with --js-after-readers N, publishes no joint state until its discovery sees N subscriptions
+  on --js-topic, as a publisher that never matched the first of them does (it sends nothing to
+  a reader it has not discovered);
 - writes to stderr when its discovery sees trajectory writers come or go and when its
   subscription matches them, and at the end how many trajectories it followed and dropped (the
   tests append it to their failure messages).
@@ -94,6 +97,7 @@ class Cell(Node):
         self.writers = (0, 0)
         self.fault_start = None
         self.ticks = 0
+        self.released = a.js_after_readers <= 0
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
     def on_trajectory(self, msg):
@@ -140,6 +144,16 @@ class Cell(Node):
                 flush=True,
             )
 
+    def held(self, now):
+        """Whether joint states are still held back (--js-after-readers): checked every 20 ticks."""
+        if self.released or self.ticks % 20:
+            return not self.released
+        n = len(self.get_subscriptions_info_by_topic(self.a.js_topic))
+        self.released = n >= self.a.js_after_readers
+        if self.released and self.a.js_after_readers > 0:
+            print(f"cell: {now - self.t_start:.2f} s: {n} subscriptions on {self.a.js_topic}: joint states start", file=sys.stderr, flush=True)
+        return not self.released
+
     def writers_elsewhere(self):
         """Writers this participant's discovery knows on every other topic: which of a
         participant's announcements it has (a trajectory writer never discovered, were the
@@ -155,6 +169,8 @@ class Cell(Node):
         pos, vel = self.traj.at(now - self.a.lag)
         fault = self.fault(now)
         if fault == "stop":
+            return
+        if self.held(now):
             return
         if fault == "stuck":
             if self.stuck_y is None:
@@ -193,6 +209,7 @@ def main():
     p.add_argument("--fault-after-trajectories", type=int, default=0)
     p.add_argument("--stop-for", type=float, default=-1.0)
     p.add_argument("--drop-first", type=int, default=0)
+    p.add_argument("--js-after-readers", type=int, default=0)
     a = p.parse_args()
     rclpy.init()
     cell = Cell(a)

@@ -23,6 +23,14 @@
 //! controller that hears both receives each trajectory twice, a few milliseconds apart; it
 //! replaces the first by the second, the same motion from where the axes are.
 //!
+//! The same loss strikes subscriptions: a cell whose Fast DDS never matched our joint-state
+//! subscription sends it nothing. When the cell's joint-state publisher, discovered, has sent
+//! no joint state for [`SECOND_READER_AFTER_NS`], a second subscription is announced, and a
+//! joint state that reaches both is taken once (by its stamp). The captures showed what the
+//! losses share: each announcement the cell had asked us to repair was lost when a later
+//! announcement of the same participant reached it first; that order also occurs in passing
+//! campaigns.
+//!
 //! A cell that misbehaves is named: a joint missing from the joint state or reporting NaN, or
 //! a target not reached within the motion's time plus `motion_timeout_s`, stops the node with
 //! the joint, the topic and the figures. Joint states that stop arriving for `topic_timeout_s`
@@ -45,7 +53,7 @@
 use super::runtime::TICK;
 use crate::backend::ros2_control::{trajectory, Arrival, JointMap, MotionLimits};
 use crate::backend::sim::{ActualReflector, SimWorld};
-use crate::ros::{now_ns, qos, shutdown, RosNode};
+use crate::ros::{now_ns, qos, shutdown, Inbox, RosNode};
 use anyhow::{anyhow, bail, Result};
 use nalgebra::{Point3, Vector3};
 use ros2_client::Publisher;
@@ -92,6 +100,13 @@ impl Motion {
 /// writer is discovered within the shortest time limits (a motion's time plus
 /// `motion_timeout_s`).
 const SECOND_WRITER_AFTER: u32 = 2;
+
+/// How long the cell's joint-state publisher may stay silent, once our participant has
+/// discovered it and before any joint state has arrived, before a second joint-state
+/// subscription is announced: the same loss as the trajectory writer's, in the other direction
+/// (the cell's Fast DDS acknowledged our reader's announcement and never matched it, so it
+/// never sent to it; seen once in 200 campaigns under load).
+const SECOND_READER_AFTER_NS: i64 = 1_000_000_000;
 
 /// One coordinate sample of the cell.
 #[derive(Clone, Copy)]
@@ -168,7 +183,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut dry = dry_run(node)?;
     node.warn_unused_parameters();
 
-    let mut states = node.subscription::<JointState>(&js_topic, qos::data())?;
+    let js_param = js_topic.clone();
+    let mut states = vec![node.subscription::<JointState>(&js_topic, qos::data())?];
     let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
@@ -206,6 +222,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut stalled = false;
     let started = now_ns();
     let mut waiting_reported = false;
+    // When our participant first saw the cell's joint-state publisher while none had arrived.
+    let mut publisher_seen_ns: Option<i64> = None;
     let mut deaf_reported = false;
     while !shutdown::requested() {
         node.wait(TICK);
@@ -259,7 +277,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
             }
             pending = None;
         }
-        while let Some(js) = states.next() {
+        for js in joint_states(&mut states, last.map(|l| l.stamp_ns)) {
             let (position, velocity) = map.axes(&js, &js_topic)?;
             let received = now_ns();
             let stamp = match js.header.stamp.to_nanos() {
@@ -334,6 +352,16 @@ pub fn run(node: &mut RosNode) -> Result<()> {
                 m.sendings += 1;
             }
         }
+        if last.is_none() && states.len() == 1 && node.publisher_count(&js_param) > 0 {
+            let seen = *publisher_seen_ns.get_or_insert(now);
+            if now - seen > SECOND_READER_AFTER_NS {
+                states.push(node.subscription::<JointState>(&js_param, qos::data())?);
+                log::warn!(
+                    "{js_topic}: the cell's publisher is discovered but has sent no joint state in {:.1} s: a second subscription is announced there (a publisher that has not discovered our first subscription discovers the new one)",
+                    (now - seen) as f64 * 1e-9
+                );
+            }
+        }
         match &last {
             None if !waiting_reported && now - started > (topic_timeout * 1e9) as i64 => {
                 log::warn!(
@@ -393,4 +421,23 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The joint states waiting on `states`, in stamp order. With a second subscription the cell
+/// may send each joint state to both: a state stamped no later than the one before it
+/// (`after`, or the previous one taken) is a copy and is dropped. A state without a stamp (0)
+/// is always taken.
+fn joint_states(states: &mut [Inbox<JointState>], after: Option<i64>) -> Vec<JointState> {
+    let mut all: Vec<JointState> = states.iter_mut().flat_map(|s| std::iter::from_fn(move || s.next())).collect();
+    if states.len() > 1 {
+        all.sort_by_key(|js| js.header.stamp.to_nanos());
+        let mut newest = after.unwrap_or(i64::MIN);
+        all.retain(|js| {
+            let t = js.header.stamp.to_nanos();
+            let fresh = t == 0 || t > newest;
+            newest = newest.max(t);
+            fresh
+        });
+    }
+    all
 }
