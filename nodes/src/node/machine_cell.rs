@@ -184,7 +184,6 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let mut dry = dry_run(node)?;
     node.warn_unused_parameters();
 
-    let js_param = js_topic.clone();
     let mut states = vec![node.subscription::<JointState>(&js_topic, qos::data())?];
     let mut commands = node.subscription::<MachineCommand>(topics::MACHINE_COMMAND, qos::commands())?;
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
@@ -194,7 +193,8 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
         None => None,
     };
-    let (js_topic, traj_param, traj_topic) = (node.resolve(&js_topic), traj_topic.clone(), node.resolve(&traj_topic));
+    let (js_param, js_topic) = (js_topic.clone(), node.resolve(&js_topic));
+    let (traj_param, traj_topic) = (traj_topic.clone(), node.resolve(&traj_topic));
     log::info!(
         "ros2_control cell: joints {} (x, y, z) from {js_topic}, trajectories to {traj_topic}{}",
         map.names.join(", "),
