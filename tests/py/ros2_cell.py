@@ -20,8 +20,9 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   on --js-topic, as a publisher that never matched the first of them does (it sends nothing to
   a reader it has not discovered);
 - writes to stderr when its discovery sees trajectory writers come or go and when its
-  subscription matches them, and at the end how many trajectories it followed and dropped (the
-  tests append it to their failure messages).
+  subscription matches them (with the writers it knows on every other topic), and at the end
+  how many trajectories it followed and dropped (the tests append it to their failure
+  messages).
 
 It writes --ready once its publisher and subscription exist, and ends on SIGTERM/SIGINT.
 """

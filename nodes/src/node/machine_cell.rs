@@ -21,8 +21,8 @@
 //! participant's endpoint discovery, where no resending of ours can reach (the announcement
 //! counts as delivered); only a new announcement does. The first writer is kept: it may be
 //! the one the controller hears. A controller that hears both receives each trajectory twice,
-//! a few milliseconds apart; it
-//! replaces the first by the second, the same motion from where the axes are.
+//! a few milliseconds apart; it replaces the first by the second, the same motion from where
+//! the axes are.
 //!
 //! The same loss strikes subscriptions: a cell whose Fast DDS never matched our joint-state
 //! subscription sends it nothing. When the cell's joint-state publisher, discovered, has sent
