@@ -99,6 +99,10 @@ class Cell(Node):
         self.fault_start = None
         self.ticks = 0
         self.released = a.js_after_readers <= 0
+        self.endpoints_log = open(a.log_endpoints, "w") if a.log_endpoints else None
+        self.endpoints_seen = set()
+        if self.endpoints_log:
+            self.endpoints_log.write("t_s,kind,topic,node,gid\n")
         self.timer = self.create_timer(1.0 / a.rate, self.tick)
 
     def on_trajectory(self, msg):
@@ -145,6 +149,18 @@ class Cell(Node):
                 flush=True,
             )
 
+    def log_endpoints(self, now):
+        """--log-endpoints: when this participant's discovery first knew each endpoint of the
+        graph (a late one among its node's: an announcement lost and made again)."""
+        for topic, _ in self.get_topic_names_and_types():
+            for kind, infos in (("writer", self.get_publishers_info_by_topic(topic)), ("reader", self.get_subscriptions_info_by_topic(topic))):
+                for info in infos:
+                    gid = bytes(info.endpoint_gid).hex()
+                    if (kind, gid) not in self.endpoints_seen:
+                        self.endpoints_seen.add((kind, gid))
+                        self.endpoints_log.write(f"{now - self.t_start:.3f},{kind},{topic},{info.node_namespace.rstrip('/')}/{info.node_name},{gid}\n")
+        self.endpoints_log.flush()
+
     def held(self, now):
         """Whether joint states are still held back (--js-after-readers): checked every 20 ticks."""
         if self.released or self.ticks % 20:
@@ -167,6 +183,8 @@ class Cell(Node):
         self.ticks += 1
         if self.ticks % 20 == 0:
             self.watch_writers(now)
+            if self.endpoints_log:
+                self.log_endpoints(now)
         pos, vel = self.traj.at(now - self.a.lag)
         fault = self.fault(now)
         if fault == "stop":
@@ -211,6 +229,7 @@ def main():
     p.add_argument("--stop-for", type=float, default=-1.0)
     p.add_argument("--drop-first", type=int, default=0)
     p.add_argument("--js-after-readers", type=int, default=0)
+    p.add_argument("--log-endpoints", default="", help="CSV of when each endpoint of the graph was first discovered")
     a = p.parse_args()
     rclpy.init()
     cell = Cell(a)
