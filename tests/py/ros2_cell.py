@@ -24,6 +24,9 @@ joint_state_broadcaster + joint_trajectory_controller on a three-axis gantry.
   how many trajectories it followed and dropped (the tests append it to their failure
   messages).
 
+With --log-endpoints FILE it writes when its discovery first knew each endpoint of the graph
+(tests/stress/endpoint_announcements.sh).
+
 It writes --ready once its publisher and subscription exist, and ends on SIGTERM/SIGINT.
 """
 import argparse
@@ -241,8 +244,9 @@ def main():
             f.write("ready\n")
     while not stop:
         rclpy.spin_once(cell, timeout_sec=0.05)
-    if cell.log:
-        cell.log.close()
+    for f in (cell.log, cell.endpoints_log):
+        if f:
+            f.close()
     print(f"cell: {cell.trajectories} trajectories followed, {cell.dropped} dropped", file=sys.stderr)
     cell.destroy_node()
     rclpy.try_shutdown()
