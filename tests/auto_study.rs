@@ -387,7 +387,7 @@ pub struct Summary {
     /// 95 % interval of `mc_ratio` from the seeds alone (percentile bootstrap over the seeds,
     /// 2 000 resamples): the scale on which the figure strays with this many seeds, since one
     /// campaign's map error is dominated by a few long-wavelength components. Approximate: with
-    /// 20 seeds of such a skewed quantity it is too narrow (README).
+    /// 20 seeds of such a skewed quantity it is too narrow (docs/representation-auto.md).
     pub mc_ratio_95: (f64, f64),
     /// `mc_ratio` at the points where the readings resolve the map ([`Outcome`]).
     pub mc_ratio_resolved: f64,

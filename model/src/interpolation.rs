@@ -32,7 +32,7 @@
 //!
 //! Nor do wider gaps show what a single position left out misses. The paper's linear tables
 //! measured by the sparse tracer fail between the stops (errors up to 7.4 times their stated
-//! uncertainty over seeds 6001-6100, README), while leaving out one stop their readings are
+//! uncertainty over seeds 6001-6100, docs/representation-auto.md), while leaving out one stop their readings are
 //! predicted as well as stated. If the prior's interpolation variance grew too fast with the gap
 //! for the truth's kinks, leaving out two or three neighbouring stops (gaps of three and four
 //! steps instead of two) would show a falling ratio. It does not (a probe, not kept; sets of
@@ -70,7 +70,7 @@ use crate::predict::median_spacing;
 /// oracle's, actual / predicted 1.05), the paper's tables in 5 instead of 4. On seeds 6001-6100,
 /// run once after the choice: the sparse tracer over a bump 2.07 -> 1.73 times the oracle's,
 /// actual / predicted 1.46 -> 1.35, 50 -> 69 % not determined; one campaign of 100 with smooth
-/// errors contradicted (README, "At five per cent").
+/// errors contradicted (docs/representation-auto.md, "At five per cent").
 pub const INTERPOLATION_ALPHA: f64 = 5e-2;
 
 /// Leave-one-position-out check of the interpolation along one axis.
@@ -184,9 +184,9 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
 /// simultaneous band in 11 -> 12 -> 14 of 20); polynomials with sinusoids 0.935 -> 0.901 -> 0.940;
 /// the paper's tables 1.024 -> 0.956 -> 1.030. On seeds 6001-6100, run once after the choice, the
 /// ratio -> pooled: over a bump 1.345 -> 1.150, smooth truths 0.929 -> 0.936, the tables 1.056 ->
-/// 1.063 (README, "The factor from the leverage"). A campaign whose readings contradict one axis's
-/// interpolation widens the others' with it: the evidence that the prior misjudges the roughness is
-/// the campaign's.
+/// 1.063 (docs/representation-auto.md, "The factor from the leverage"). A campaign whose
+/// readings contradict one axis's interpolation widens the others' with it: the evidence that the
+/// prior misjudges the roughness is the campaign's.
 pub fn variance_scale(checks: &[InterpolationCheck]) -> f64 {
     let excess: f64 = checks.iter().map(|c| c.chi2 - c.readings as f64).sum();
     let leverage: f64 = checks.iter().map(|c| c.leverage).sum();

@@ -59,7 +59,7 @@ use faer::{Mat, Side};
 /// reweighted fits, floor the mean; 1.397 and 1.443 with floors 0.1 and 0.01 of it, actual /
 /// predicted 0.94, 1.03, 1.15) at three to five times the solve time. The oracle told the
 /// family but not where its bump and breakpoints lie is 1.243 times the oracle there
-/// (`Oracle::located` in the tests; README).
+/// (`Oracle::located` in the tests; docs/representation-auto.md).
 pub const PENALTY_ORDER: usize = 3;
 
 /// Pieces of each function's travel with a smoothing parameter of their own. The roughness of
@@ -90,7 +90,7 @@ pub const PENALTY_ORDER: usize = 3;
 /// 1-5, the map error moved by 1 % or less except with FYXZ beams, where it rose (dense 1.741
 /// -> 1.881, sparse 1.445 -> 1.569 times the oracle's): the readings often cannot tell a
 /// bump in a straightness from one in an angle of the same axis, and the scan frees the wrong
-/// one (README, the sparse joint campaign's seed 6092). Freeing the same bump in all six
+/// one (docs/representation-auto.md, the sparse joint campaign's seed 6092). Freeing the same bump in all six
 /// functions of the axis at once (the data then sort out which carries it) gave dense FYXZ
 /// 1.637, but sparse FYXZ 1.538 and dense FXYZ 1.547; adding bends (a truncated quadratic at
 /// each knot: the curvature jumps of a piecewise cubic) to the candidates, 1.680 and 1.529

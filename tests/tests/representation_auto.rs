@@ -1,9 +1,10 @@
 //! Issue 12: `representation: auto` (knots from the data, smoothing by REML) against an oracle
 //! that knows each truth's own basis; uncertainty that covers what the data leave open.
 //!
-//! The full table (20 seeds per case, and 20 held-out seeds) is printed by
-//! `cargo run --release -p volcal_tests --example auto_study` and kept in README; this test runs
-//! every case of the suite on a few seeds and checks what must hold on any of them.
+//! The full table (20 seeds per case, and held-out seeds) is printed by
+//! `cargo run --release -p volcal_tests --example auto_study`; README summarises it and
+//! docs/representation-auto.md keeps the record. This test runs every case of the suite on a few
+//! seeds and checks what must hold on any of them.
 
 use nalgebra::Vector3;
 use volcal::flexibility::Auto;
@@ -82,7 +83,7 @@ fn every_case_is_honest_and_smooth_truths_are_near_the_oracle() {
     // its uncertainty is right. Reported, not asserted: the bound set before this was first run
     // (7 or more of the 42 smooth campaigns outside, probability 0.0045) failed, with 9: every
     // polynomial campaign lies within its band, but over the paper's tables, whose kinks the
-    // smoothing rounds, the tracer and joint campaigns leave it in 9 of 12 (README, "The map as
+    // smoothing rounds, the tracer and joint campaigns leave it in 9 of 12 (docs/representation-auto.md, "The map as
     // a whole").
     eprintln!(
         "smooth families: the whole map outside its simultaneous band in {outside_band} of {campaigns} campaigns"
@@ -297,7 +298,7 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
 /// reaches them gets 27. What this changes depends on whether a bump falls between the stops:
 /// on this test's three seeds it does not matter (1.429 against 1.445 times the oracle's error,
 /// actual / predicted 1.155 against 1.149), so only the knots are checked here; over 20 seeds
-/// (`auto_study`, README) it does: held-out seeds 1001-1020 2.33 -> 1.42 times the oracle,
+/// (`auto_study`, docs/representation-auto.md) it does: held-out seeds 1001-1020 2.33 -> 1.42 times the oracle,
 /// actual / predicted 1.81 -> 1.11.
 #[test]
 fn an_axis_refined_up_to_its_stops_goes_beyond_them() {
