@@ -74,6 +74,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     Diagnose {
         /// Campaign file (.csv, or a bag recorded by the node set).
         campaign: PathBuf,
+        /// Machine file (YAML): topology and travel are enough (`representation: auto`).
         #[arg(long)]
         machine: PathBuf,
         /// Write the diagnosis (JSON).
@@ -89,6 +90,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     Solve {
         /// Campaign file (.csv, or .mcap from the recorder).
         campaign: PathBuf,
+        /// Machine file (YAML): topology and travel are enough (`representation: auto`).
         #[arg(long)]
         machine: PathBuf,
         /// Model file (JSON) to write.
@@ -102,14 +104,18 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         after_help = "Example:\n  volcal predict model.json points.csv --out errors.csv\n\npoints.csv has columns x_m,y_m,z_m and optionally px_m,py_m,pz_m; errors.csv repeats them and adds ex_m,ey_m,ez_m,u95_m (u95: expanded uncertainty, k = 2, along the least favourable direction)."
     )]
     Predict {
+        /// Model file (JSON, from `volcal solve`).
         model: PathBuf,
+        /// Points (CSV: x_m,y_m,z_m, optionally px_m,py_m,pz_m).
         points: PathBuf,
+        /// Errors to write (CSV).
         #[arg(long)]
         out: PathBuf,
     },
     /// Volumetric error map on a regular grid over the travel.
     #[command(after_help = "Example:\n  volcal map model.json --step 0.05 --out map.csv --probe 0,0,-0.1")]
     Map {
+        /// Model file (JSON, from `volcal solve`).
         model: PathBuf,
         /// Grid spacing, metres.
         #[arg(long, default_value_t = 0.05)]
@@ -117,6 +123,8 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Probe offset px,py,pz in metres.
         #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
         probe: String,
+        /// Map to write (CSV: the point, the error, its U95, whether the data determine it and
+        /// whether it is interpolated between measured positions).
         #[arg(long)]
         out: PathBuf,
     },
@@ -125,9 +133,12 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         after_help = "Example:\n  volcal export model.json --format linuxcnc --out comp/ --step-mm 10 --point 0.5,0.4,-0.3\n  volcal export model.json --format grid --out grid/ --step-mm 50\n  volcal export model.json --format isg --out isg/ --step-mm 10\n  volcal export model.json --format sinumerik --out sin/ --step-mm 20 --point 0.5,0.4,-0.3 --diagnosis diag.json\n\nREADME.txt in the output directory says how to load the files, what the format drops and the error that remains."
     )]
     Export {
+        /// Model file (JSON, from `volcal solve`).
         model: PathBuf,
+        /// The controller's format.
         #[arg(long, value_enum)]
         format: volcal_cli::export_cmd::Format,
+        /// Directory to write the files and their README.txt to.
         #[arg(long)]
         out: PathBuf,
         /// Node spacing, millimetres (default: linuxcnc 10, isg 10, sinumerik 20, grid 50).
@@ -170,6 +181,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         after_help = "Example:\n  volcal report model.json --compensation-dir comp/ --points 101\n  volcal report bags/sim_short          (a bag: topics, pairs, pairing; and model.json if the solver node left one there)"
     )]
     Report {
+        /// Model file (JSON), or a bag directory from the recorder.
         model: PathBuf,
         /// Write compensation_x.csv, compensation_y.csv, compensation_z.csv here.
         #[arg(long)]
@@ -228,6 +240,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         after_help = "Examples:\n  volcal validate model.json --axis x\n  volcal validate model.json --diagonals --truth truth.json --machine launch_configs/machines/paper_cmm.yaml\n  volcal validate model.json --axis y --start 0,0,-0.7 --points 11 --out y.csv\n  volcal validate model.json --line 0,0,-0.7:0.7,-0.5,0\n\nThe deviation at each target is the model's volumetric error projected on the line, referred to the start (where an interferometer would be zeroed). Diagonals are the paper's Table 4 (NPP, NPN, PPN, PPP). With --truth (a simulation truth file) each line is also measured by a simulated interferometer on the true machine, --runs bidirectional runs averaged, and the differences reported; with --compensation too, the machine is measured under its controller's compensation (after `volcal export`): the verification of a compensation along its axes.\n  volcal validate model.json --axis x --start 0.4,0.25,-0.25 --truth truth.json --machine M.yaml --compensation comp/"
     )]
     Validate {
+        /// Model file (JSON, from `volcal solve`).
         model: PathBuf,
         /// Axis line: x, y or z.
         #[arg(long, conflicts_with_all = ["diagonals", "line"])]
@@ -256,6 +269,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Bidirectional runs averaged per line.
         #[arg(long, default_value_t = 5)]
         runs: usize,
+        /// Seed of the simulated interferometer's repeatability (with --truth).
         #[arg(long, default_value_t = 1)]
         seed: u64,
         /// Write the lines as CSV.
@@ -275,6 +289,8 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Keep the files here instead of a temporary directory.
         #[arg(long)]
         workdir: Option<PathBuf>,
+        /// Random seed of the campaign and the validation runs (the paper's machine is fixed: the
+        /// seed draws the noise).
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
@@ -283,8 +299,10 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         after_help = "Example:\n  volcal merge beams.csv ranges.csv --out joint.csv\n  volcal solve joint.csv --machine M.yaml --out model.json\n\nStation ids already used by an earlier file for the same kind are renumbered; times are shifted so that each campaign follows the previous one."
     )]
     Merge {
+        /// Campaign files (CSV) of the same machine, in the order they were measured.
         #[arg(required = true, num_args = 1..)]
         campaigns: Vec<PathBuf>,
+        /// Merged campaign to write (CSV).
         #[arg(long)]
         out: PathBuf,
     },
@@ -294,6 +312,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
         /// Keep the files here instead of a temporary directory.
         #[arg(long)]
         workdir: Option<PathBuf>,
+        /// Random seed (truth and noise).
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
@@ -323,13 +342,19 @@ enum BenchCommand {
         viz: bool,
     },
     /// Read and decode every message of a bag; messages per second.
-    Replay { bag: PathBuf },
+    Replay {
+        /// Bag directory (from `volcal bench recorder` or the recorder node).
+        bag: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
 enum BagCommand {
     /// Messages per topic (read from the MCAP data, not from metadata.yaml).
-    Info { bag: PathBuf },
+    Info {
+        /// Bag directory (rosbag2: metadata.yaml and .mcap files), or one .mcap file.
+        bag: PathBuf,
+    },
 }
 
 fn run() -> anyhow::Result<ExitCode> {

@@ -28,7 +28,7 @@ use volcal_sim::{Deflector, EnvironmentSim, Interferometer, Tracer, TruthSpec};
 
 /// Per-axis travel as written in YAML.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, expecting = "the travel per axis in metres, {x: [lo, hi], y: [lo, hi], z: [lo, hi]}")]
 pub struct TravelSpec {
     pub x: [f64; 2],
     pub y: [f64; 2],
@@ -159,7 +159,7 @@ impl<'de> Deserialize<'de> for RepresentationSpec {
 
 /// A machine file.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, expecting = "a machine file: a map with at least `topology` and `travel`")]
 pub struct MachineFile {
     #[serde(default)]
     pub name: Option<String>,
