@@ -224,10 +224,11 @@ pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize
     let (pts, offs) = read_points(points)?;
     let travel = model.layout.travel;
     let big = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
-    let outside = pts.iter().filter(|x| !travel.contains(x, 1e-3 * big)).count();
-    if outside > 0 {
-        eprintln!("warning: {}: {outside} point(s) lie outside the calibrated travel; errors are extrapolated as constant there", points.display());
-    }
+    // Outside the travel the functions hold their end values, which no reading determines: such
+    // a point gets no value, as one the readings leave open does (a tolerance of a thousandth
+    // of the longest axis keeps points at the ends, rounded, inside).
+    let inside = |x: &Point3<f64>| travel.contains(x, 1e-3 * big);
+    let outside = pts.iter().filter(|x| !inside(x)).count();
     if outside * 2 > pts.len() && pts.iter().any(|x| x.coords.amax() > 50.0 * big) {
         bail!(
             "{}: the points are far outside the travel: they look like millimetres; coordinates are in metres",
@@ -237,14 +238,22 @@ pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize
     let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
     let with_p = offs.is_some();
-    writeln!(w, "x_m,y_m,z_m{},ex_m,ey_m,ez_m,u95_m,determined", if with_p { ",px_m,py_m,pz_m" } else { "" })?;
+    writeln!(
+        w,
+        "x_m,y_m,z_m{},ex_m,ey_m,ez_m,u95_m,determined,interpolated",
+        if with_p { ",px_m,py_m,pz_m" } else { "" }
+    )?;
     let pb = bar(pts.len() as u64, "predicting");
     let mut undetermined = 0;
     for (i, x) in pts.iter().enumerate() {
         let p = offs.as_ref().map(|o| o[i]).unwrap_or_else(Vector3::zeros);
-        let pe = predict::predict(model, &unc, x, &p);
-        let values = error_fields(model, &pe);
-        undetermined += !pe.is_determined() as usize;
+        let values = if inside(x) {
+            let pe = predict::predict(model, &unc, x, &p);
+            undetermined += !pe.is_determined() as usize;
+            error_fields(model, &pe)
+        } else {
+            ",,,,0,0".to_string()
+        };
         if with_p {
             writeln!(w, "{},{},{},{},{},{},{values}", x.x, x.y, x.z, p.x, p.y, p.z)?;
         } else {
@@ -254,6 +263,19 @@ pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize
     }
     pb.finish_and_clear();
     w.flush()?;
+    if outside > 0 {
+        let ranges = Axis::ALL
+            .map(|a| {
+                let [lo, hi] = travel.range(a);
+                format!("{} {lo} to {hi} m", a.letter().to_ascii_lowercase())
+            })
+            .join(", ");
+        eprintln!(
+            "warning: {}: {outside} of {} point(s) lie outside the calibrated travel ({ranges}): no reading says what the error is there (determined = 0, no value); calibrate over the travel these points need",
+            points.display(),
+            pts.len()
+        );
+    }
     if undetermined > 0 {
         eprintln!(
             "warning: the data do not determine the error at {undetermined} of {} point(s) (determined = 0, no value): {}",
@@ -304,14 +326,14 @@ pub fn map_cmd(model_path: &Path, step: f64, probe: Vector3<f64>, out: &Path) ->
     Ok(pts.len())
 }
 
-/// `ex_m,ey_m,ez_m,u95_m,determined` of a prediction: no numbers where the data do not
+/// `ex_m,ey_m,ez_m,u95_m,determined,interpolated` of a prediction: no numbers where the data do not
 /// determine the error (the minimum-norm value there means nothing).
 fn error_fields(model: &volcal::ErrorModel, pe: &predict::PointError) -> String {
     if !pe.is_determined() {
-        return ",,,,0".into();
+        return format!(",,,,0,{}", pe.interpolated as u8);
     }
     let e = model.error(&pe.x, &pe.p);
-    format!("{},{},{},{},1", e.x, e.y, e.z, pe.u95())
+    format!("{},{},{},{},1,{}", e.x, e.y, e.z, pe.u95(), pe.interpolated as u8)
 }
 
 /// `volcal report`: the summary, and optionally per-axis compensation tables.
@@ -393,17 +415,23 @@ pub fn demo_cmd(workdir: Option<&Path>, seed: u64) -> Result<()> {
     Ok(())
 }
 
-/// Parses `px,py,pz` in metres.
+/// Parses three comma-separated numbers in metres (a point `x,y,z` or a probe offset
+/// `px,py,pz`); the caller names the option in the error's context.
 pub fn parse_vec3(s: &str) -> Result<Vector3<f64>> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| anyhow::anyhow!("{s:?} is not three numbers px,py,pz"))?;
+        .map_err(|_| anyhow::anyhow!("{s:?} is not three comma-separated numbers in metres (e.g. 0.5,0.4,-0.3)"))?;
     if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-        bail!("{s:?} is not three finite numbers px,py,pz");
+        bail!("{s:?} is not three finite comma-separated numbers in metres (e.g. 0.5,0.4,-0.3)");
     }
     Ok(Vector3::new(v[0], v[1], v[2]))
+}
+
+/// [`parse_vec3`] of the value of `option` (e.g. `--probe`), which the error names.
+pub fn parse_option_vec3(option: &str, s: &str) -> Result<Vector3<f64>> {
+    parse_vec3(s).with_context(|| option.to_string())
 }
 
 /// Default working directory path helper for tests.

@@ -101,7 +101,7 @@ The catalogue: air_refraction, material_expansion, setup_drift, latency, reversa
     },
     /// Predict the volumetric error and its uncertainty at given points.
     #[command(
-        after_help = "Example:\n  volcal predict model.json points.csv --out errors.csv\n\npoints.csv has columns x_m,y_m,z_m and optionally px_m,py_m,pz_m; errors.csv repeats them and adds ex_m,ey_m,ez_m,u95_m (u95: expanded uncertainty, k = 2, along the least favourable direction)."
+        after_help = "Example:\n  volcal predict model.json points.csv --out errors.csv\n\npoints.csv has columns x_m,y_m,z_m and optionally px_m,py_m,pz_m; errors.csv repeats them and adds ex_m,ey_m,ez_m,u95_m (u95: expanded uncertainty, k = 2, along the least favourable direction), determined (0: the readings do not determine the error there, or the point lies outside the calibrated travel; no value is given) and interpolated (1: between the measured positions of an axis the readings resolve only there, e.g. a tracer's stops)."
     )]
     Predict {
         /// Model file (JSON, from `volcal solve`).
@@ -412,7 +412,7 @@ fn run() -> anyhow::Result<ExitCode> {
             eprintln!("wrote {n} predictions to {}", out.display());
         }
         Command::Map { model, step, probe, out } => {
-            let n = commands::map_cmd(&model, step, commands::parse_vec3(&probe)?, &out)?;
+            let n = commands::map_cmd(&model, step, commands::parse_option_vec3("--probe", &probe)?, &out)?;
             eprintln!("wrote {n} grid points to {}", out.display());
         }
         Command::Export { model, format, out, step_mm, nodes, point, probe, comp_type, diagnosis } => {
@@ -421,8 +421,12 @@ fn run() -> anyhow::Result<ExitCode> {
                 format,
                 step_m: step_mm.map(|s| s * 1e-3),
                 nodes,
-                point: point.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from),
-                probe: commands::parse_vec3(&probe)?,
+                point: point
+                    .as_deref()
+                    .map(|p| commands::parse_option_vec3("--point", p))
+                    .transpose()?
+                    .map(nalgebra::Point3::from),
+                probe: commands::parse_option_vec3("--probe", &probe)?,
                 comp_type: if comp_type == 1 { CompFileType::Offset } else { CompFileType::Actual },
                 diagnosis,
             };
@@ -491,7 +495,11 @@ fn run() -> anyhow::Result<ExitCode> {
                     let axis = volcal::Axis::from_letter(a.trim().chars().next().unwrap_or(' ').to_ascii_uppercase())
                         .filter(|_| a.trim().len() == 1)
                         .ok_or_else(|| anyhow::anyhow!("--axis {a:?}: expected x, y or z"))?;
-                    let start = start.as_deref().map(commands::parse_vec3).transpose()?.map(nalgebra::Point3::from);
+                    let start = start
+                        .as_deref()
+                        .map(|s| commands::parse_option_vec3("--start", s))
+                        .transpose()?
+                        .map(nalgebra::Point3::from);
                     validation::LineSpec::Axis { axis, start }
                 }
                 (None, true, _) => validation::LineSpec::Diagonals,
@@ -502,7 +510,7 @@ fn run() -> anyhow::Result<ExitCode> {
                 model: &model,
                 lines,
                 points,
-                probe: commands::parse_vec3(&probe)?,
+                probe: commands::parse_option_vec3("--probe", &probe)?,
                 truth: truth.as_deref(),
                 machine: machine.as_deref(),
                 runs,

@@ -95,13 +95,23 @@ fn solve_predict_map_report_and_determinism() {
     assert_eq!(std::fs::read(&m1).unwrap(), std::fs::read(&m2).unwrap());
 
     let pts = d.join("points.csv");
-    std::fs::write(&pts, "x_m,y_m,z_m,px_m,py_m,pz_m\n0.5,0.4,-0.3,0,0,-0.1\n0.1,0.7,-0.5,0.12,0,-0.1\n").unwrap();
+    // The third point lies 0.5 m beyond the travel's X end: no reading says anything there.
+    std::fs::write(
+        &pts,
+        "x_m,y_m,z_m,px_m,py_m,pz_m\n0.5,0.4,-0.3,0,0,-0.1\n0.1,0.7,-0.5,0.12,0,-0.1\n1.5,0.4,-0.3,0,0,0\n",
+    )
+    .unwrap();
     let out = d.join("errors.csv");
     let o = volcal(&["predict", m1.to_str().unwrap(), pts.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
+    let said = text(&o);
+    assert!(said.contains("1 of 3 point(s) lie outside the calibrated travel (x 0 to 1 m"), "{said}");
     let e = std::fs::read_to_string(&out).unwrap();
-    assert!(e.starts_with("x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,u95_m,determined\n"), "{e}");
-    assert_eq!(e.lines().count(), 3);
+    let rows: Vec<&str> = e.lines().collect();
+    assert_eq!(rows[0], "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,u95_m,determined,interpolated", "{e}");
+    assert_eq!(rows.len(), 4);
+    assert!(rows[1].ends_with(",1,0") && rows[2].ends_with(",1,0"), "{e}");
+    assert_eq!(rows[3], "1.5,0.4,-0.3,0,0,0,,,,,0,0", "outside the travel: no value");
 
     let map = d.join("map.csv");
     let o =
@@ -230,6 +240,38 @@ fn bad_input_is_reported_with_file_line_and_field() {
         "{t}"
     );
     assert!(!t.contains("panicked"));
+
+    // A travel of the wrong shape: the error says the shape expected.
+    std::fs::write(&bad_machine, "topology: FXYZ\ntravel: [1.0, 0.8, 0.6]\n").unwrap();
+    let o = volcal(&[
+        "solve",
+        d.join("campaign.csv").to_str().unwrap(),
+        "--machine",
+        bad_machine.to_str().unwrap(),
+        "--out",
+        d.join("x.json").to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(
+        !o.status.success() && t.contains("line 2") && t.contains("{x: [lo, hi], y: [lo, hi], z: [lo, hi]}"),
+        "{t}"
+    );
+
+    // An option's point with two numbers: the error names the option.
+    let model = d.join("model.json");
+    let o = volcal(&[
+        "solve",
+        d.join("campaign.csv").to_str().unwrap(),
+        "--machine",
+        &machine(),
+        "--out",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let map = d.join("map.csv");
+    let o = volcal(&["map", model.to_str().unwrap(), "--probe", "0,-0.1", "--out", map.to_str().unwrap()]);
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("--probe") && t.contains("three"), "{t}");
 }
 
 /// A line whose count was re-established at its second point with nothing flagged (the CI
