@@ -223,39 +223,28 @@ fn bad_input_is_reported_with_file_line_and_field() {
     assert_eq!(code, 0, "{t}");
     assert!(t.contains("station 7 beam 99 has 2 point(s)"), "{t}");
 
-    // Unknown topology in the machine file.
+    // A machine file that is wrong: the error names the file, the line and what was expected.
     let bad_machine = d.join("bad_machine.yaml");
-    std::fs::write(&bad_machine, "topology: FXQZ\ntravel: {x: [0, 1], y: [0, 0.8], z: [-0.6, 0]}\n").unwrap();
-    let o = volcal(&[
-        "solve",
-        d.join("campaign.csv").to_str().unwrap(),
-        "--machine",
-        bad_machine.to_str().unwrap(),
-        "--out",
-        d.join("x.json").to_str().unwrap(),
-    ]);
-    let t = text(&o);
-    assert!(
-        !o.status.success() && t.contains("bad_machine.yaml") && t.contains("topology") && t.contains("FXQZ"),
-        "{t}"
-    );
-    assert!(!t.contains("panicked"));
-
+    let solve_with_machine = |yaml: &str| {
+        std::fs::write(&bad_machine, yaml).unwrap();
+        let o = volcal(&[
+            "solve",
+            d.join("campaign.csv").to_str().unwrap(),
+            "--machine",
+            bad_machine.to_str().unwrap(),
+            "--out",
+            d.join("x.json").to_str().unwrap(),
+        ]);
+        let t = text(&o);
+        assert!(!o.status.success() && t.contains("bad_machine.yaml") && !t.contains("panicked"), "{t}");
+        t
+    };
+    // Unknown topology.
+    let t = solve_with_machine("topology: FXQZ\ntravel: {x: [0, 1], y: [0, 0.8], z: [-0.6, 0]}\n");
+    assert!(t.contains("topology") && t.contains("FXQZ"), "{t}");
     // A travel of the wrong shape: the error says the shape expected.
-    std::fs::write(&bad_machine, "topology: FXYZ\ntravel: [1.0, 0.8, 0.6]\n").unwrap();
-    let o = volcal(&[
-        "solve",
-        d.join("campaign.csv").to_str().unwrap(),
-        "--machine",
-        bad_machine.to_str().unwrap(),
-        "--out",
-        d.join("x.json").to_str().unwrap(),
-    ]);
-    let t = text(&o);
-    assert!(
-        !o.status.success() && t.contains("line 2") && t.contains("{x: [lo, hi], y: [lo, hi], z: [lo, hi]}"),
-        "{t}"
-    );
+    let t = solve_with_machine("topology: FXYZ\ntravel: [1.0, 0.8, 0.6]\n");
+    assert!(t.contains("line 2") && t.contains("{x: [lo, hi], y: [lo, hi], z: [lo, hi]}"), "{t}");
 
     // An option's point with two numbers: the error names the option.
     let model = d.join("model.json");
