@@ -78,9 +78,10 @@ pub fn summary_markdown(obs: &Observations, solution: &Solution, map: &volumetri
         .band
         .map(|b| {
             format!(
-                "; {:.1} µm over the map as a whole: with {:.0} % probability every value of the map lies within {:.2} σ of the truth at once",
+                "; {:.1} µm over the map as a whole: with {:.0} % probability every value of the map (on a {:.0} mm grid) lies within {:.2} σ of the truth at once",
                 b.expanded(&m.at) * 1e6,
                 b.level * 100.0,
+                map.search_step_m * 1e3,
                 b.k
             )
         })

@@ -27,6 +27,9 @@ pub struct MapInfo {
     /// Length of the scale bar, as an error, metres.
     pub scale_bar_m: f64,
     pub probe: Vector3<f64>,
+    /// Spacing of the grid the maximum was searched on and the band drawn over, metres: the
+    /// report's grid (50 mm) is finer, so its band factor is a little larger.
+    pub search_step_m: f64,
     /// The map's 95 % simultaneous band over the grid its maximum was searched on
     /// ([`volcal::band`]): what that maximum is known to.
     pub band: Option<SimultaneousBand>,
@@ -61,11 +64,12 @@ pub fn log_volumetric_map(
                 .with_radii([crate::rerun::Radius::new_ui_points(3.0)]),
         )?;
     }
-    let max = predict::max_error(model, unc, probe, step / 2.0);
+    let search_step_m = step / 2.0;
+    let max = predict::max_error(model, unc, probe, search_step_m);
     let band = simultaneous_band(
         model,
         unc,
-        &predict::grid(&travel, step / 2.0),
+        &predict::grid(&travel, search_step_m),
         std::slice::from_ref(probe),
         BAND_LEVEL,
         BAND_DRAWS,
@@ -103,7 +107,7 @@ pub fn log_volumetric_map(
             .with_radii([crate::rerun::Radius::new_ui_points(3.0)])
             .with_labels([format!("scale: {} µm (arrows ×{})", fmt_um(scale_bar_m), scale)]),
     )?;
-    Ok(MapInfo { max, scale, scale_bar_m, probe: *probe, band })
+    Ok(MapInfo { max, scale, scale_bar_m, probe: *probe, search_step_m, band })
 }
 
 fn fmt_um(m: f64) -> String {
