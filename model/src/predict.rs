@@ -399,6 +399,10 @@ pub fn is_determined_with(unc: &Uncertainty<'_>, x: &Point3<f64>, s: &Sensitivit
 }
 
 /// Volumetric error and its covariance at `(x, p)`, and whether the data determine it.
+///
+/// For `x` within the model's travel: beyond it the functions hold their end values, which no
+/// reading determines, and neither [`PointError::is_determined`] nor the covariance says so (the
+/// caller that takes points from outside, `volcal predict`, gives no value there).
 pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &Vector3<f64>) -> PointError {
     let s = model.layout.sensitivity(x, p);
     let undetermined = undetermined_share(unc, &s);
