@@ -59,7 +59,13 @@ pub struct StationEntry {
 pub struct IdentifiabilityEntry {
     pub rank: usize,
     pub gauge_dim: usize,
+    /// Directions beyond the gauge that the data do not determine; with smoothing, that neither
+    /// the readings nor the roughness prior determine (the `undetermined` directions).
     pub extra_null_dim: usize,
+    /// Directions the readings alone leave open that the roughness prior determines (0 without
+    /// smoothing, and in files written before stop 51, whose `extra_null_dim` counted them).
+    #[serde(default)]
+    pub prior_determined: usize,
     pub condition_number: f64,
     pub identified_functions: usize,
     pub not_observed: Vec<String>,
@@ -416,6 +422,7 @@ impl ModelFile {
                 rank: id.rank,
                 gauge_dim: id.gauge_dim,
                 extra_null_dim: id.extra_null_dim,
+                prior_determined: id.prior_determined,
                 condition_number: if id.condition_number.is_finite() { id.condition_number } else { -1.0 },
                 identified_functions: id.identified_functions,
                 not_observed: id.not_observed.clone(),

@@ -982,7 +982,7 @@ pub fn fit<'a>(
     // With smoothing, the roughness prior determines the curvature that the readings leave
     // open: only what neither determines stays undetermined.
     let (ident, z) = if prob.penalty.is_some() && ident.directions.ncols() > 0 {
-        let ident = prior_covered(&mut prob, &m0, &gauge_z, &scale, ident, tol);
+        let ident = prior_covered(&mut prob, &first.n, &m0, &gauge_z, &scale, ident, tol);
         let z = NullSpace::new(&stack_rows(&cons, &ident.extra_constraints), &scale);
         (ident, z)
     } else {
@@ -1024,10 +1024,12 @@ pub fn fit<'a>(
         let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom, None);
         let mut ident_f =
             analyse_at(&prob, &nominal, &normal_nom.n, &m_nom, None, &z_nom, &scale_nom, opts.rank_tolerance);
-        if ident_f.report.extra_null_dim > ident.report.extra_null_dim && prob.penalty.is_some() {
-            ident_f = prior_covered(&mut prob, &m_nom, &z_nom, &scale_nom, ident_f, opts.rank_tolerance);
+        // What the readings alone left open at the start (before the prior determined part of it).
+        let open = ident.report.extra_null_dim + ident.report.prior_determined;
+        if ident_f.report.extra_null_dim > open && prob.penalty.is_some() {
+            ident_f = prior_covered(&mut prob, &normal_nom.n, &m_nom, &z_nom, &scale_nom, ident_f, opts.rank_tolerance);
         }
-        if ident_f.report.extra_null_dim > ident.report.extra_null_dim
+        if ident_f.report.extra_null_dim + ident_f.report.prior_determined > open
             && ident_f.directions.ncols() > ident.directions.ncols()
         {
             let w = &ident_f.extra_constraints;
@@ -1049,6 +1051,10 @@ pub fn fit<'a>(
                 }
             }
             ident = ident_f;
+        } else if ident.report.prior_determined > 0 && ident_f.report.prior_determined == 0 {
+            // Same null space: report the analysis with the stations as located, for what the
+            // prior leaves undetermined.
+            ident.report = restated_at(layout, &normal_nom.n, &scale_nom, &ident, ident_f).report;
         } else {
             // Same null space: report the analysis with the stations as located.
             ident.report = ident_f.report;
@@ -1300,6 +1306,7 @@ fn reml_round(
 /// alone determine and says what the prior adds.
 fn prior_covered(
     prob: &mut Problem<'_>,
+    n_full: &Mat<f64>,
     m0: &Mat<f64>,
     gz: &NullSpace,
     scale: &[f64],
@@ -1345,14 +1352,28 @@ fn prior_covered(
     let wn = gz.z(&vn);
     ident.extra_constraints = Mat::from_fn(wn.ncols(), n, |r, k| wn[(k, r)] * scale[k]);
     ident.directions = Mat::from_fn(n, wn.ncols(), |k, r| wn[(k, r)] / scale[k]);
-    let covered = k0.saturating_sub(null.len());
-    if covered > 0 {
-        ident.report.statements.push(format!(
-            "The roughness prior of the smoothing determines {covered} of the {k0} direction(s) the readings leave open (curvature between the readings, with the prior's uncertainty); {} remain undetermined.",
-            null.len()
-        ));
+    if null.len() < k0 {
+        identify::restate(prob.layout, n_full, &wn, &mut ident);
     }
     ident
+}
+
+/// `fresh`, an analysis of the readings alone at the located stations that found the same
+/// null space as `prior`'s readings, restated for what `prior` (after [`prior_covered`]) leaves
+/// undetermined: its directions, scaled by `scale` and orthonormalised, in `fresh`'s
+/// coordinates.
+fn restated_at(
+    layout: &ModelLayout,
+    n_full: &Mat<f64>,
+    scale: &[f64],
+    prior: &identify::Analysis,
+    mut fresh: identify::Analysis,
+) -> identify::Analysis {
+    let d = &prior.directions;
+    let w = Mat::from_fn(d.nrows(), d.ncols(), |k, r| d[(k, r)] * scale[k]);
+    let w = if w.ncols() > 0 { w.qr().compute_thin_Q() } else { w };
+    identify::restate(layout, n_full, &w, &mut fresh);
+    fresh
 }
 
 /// The undetermined directions of the model coefficients: the first `n_u` rows of the
@@ -1598,7 +1619,8 @@ fn analyse_at(
                 }
             ));
         }
-        ident.report.statements.extend(said);
+        ident.report.statements.extend(said.iter().cloned());
+        ident.appended = said;
     }
     ident
 }

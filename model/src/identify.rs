@@ -94,8 +94,13 @@ pub struct Identifiability {
     pub n_other: usize,
     /// Gauge freedoms fixed by the constraints.
     pub gauge_dim: usize,
-    /// Further directions the data do not determine.
+    /// Further directions the data do not determine (with smoothing: that neither the readings
+    /// nor the roughness prior determine, the directions the model file keeps as undetermined).
     pub extra_null_dim: usize,
+    /// Directions the readings alone leave open that the roughness prior of the smoothing
+    /// determines (the curvature between the readings, with the prior's uncertainty); 0 without
+    /// smoothing.
+    pub prior_determined: usize,
     /// Rank of the design: parameters minus gauge minus extra null space.
     pub rank: usize,
     /// Condition number of the determined part (scaled).
@@ -123,6 +128,11 @@ pub(crate) struct Analysis {
     pub extra_constraints: Mat<f64>,
     /// The undetermined directions themselves, unscaled (`dim x m`, columns `S^-1 w`).
     pub directions: Mat<f64>,
+    /// The facts about the data the report was phrased with (for [`restate`]).
+    pub summary: DataSummary,
+    /// Statements the caller appended after the analysis's own (the tracer stations' geometry),
+    /// kept when the report is restated.
+    pub appended: Vec<String>,
 }
 
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
@@ -165,7 +175,13 @@ pub(crate) fn analyse(
         report.rank = z.dim();
         gauge_check(layout, n, lambda_max_estimate(m), &gauge_basis, &mut report);
         describe(layout, summary, n, &Mat::zeros(dim, 0), &mut report);
-        return Analysis { report, extra_constraints: Mat::zeros(0, dim), directions: Mat::zeros(dim, 0) };
+        return Analysis {
+            report,
+            extra_constraints: Mat::zeros(0, dim),
+            directions: Mat::zeros(dim, 0),
+            summary: summary.clone(),
+            appended: Vec::new(),
+        };
     }
     // Eigenvalues (the singular values of the scaled, constrained design, squared);
     // eigenvectors only when something is undetermined.
@@ -173,7 +189,13 @@ pub(crate) fn analyse(
         Ok(l) => l,
         Err(e) => {
             report.warnings.push(format!("identifiability analysis failed: {e:?}"));
-            return Analysis { report, extra_constraints: Mat::zeros(0, dim), directions: Mat::zeros(dim, 0) };
+            return Analysis {
+                report,
+                extra_constraints: Mat::zeros(0, dim),
+                directions: Mat::zeros(dim, 0),
+                summary: summary.clone(),
+                appended: Vec::new(),
+            };
         }
     };
     let lmax = lam.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
@@ -200,7 +222,22 @@ pub(crate) fn analyse(
 
     gauge_check(layout, n, lmax, &gauge_basis, &mut report);
     describe(layout, summary, n, &w, &mut report);
-    Analysis { report, extra_constraints: extra, directions }
+    Analysis { report, extra_constraints: extra, directions, summary: summary.clone(), appended: Vec::new() }
+}
+
+/// Restates `analysis`'s report for the directions `w` (scaled coordinates, orthonormal
+/// columns) that stay undetermined once the roughness prior of the smoothing has determined the
+/// others of those the readings left open: the counts, the functions not identified, the
+/// combinations and the statements then speak of what the model file keeps as undetermined,
+/// not of curvature the prior fixes (which would otherwise read as "set to zero"). `n` is the
+/// normal matrix the analysis was made on.
+pub(crate) fn restate(layout: &ModelLayout, n: &Mat<f64>, w: &Mat<f64>, analysis: &mut Analysis) {
+    let report = &mut analysis.report;
+    let open = report.extra_null_dim + report.prior_determined;
+    report.extra_null_dim = w.ncols();
+    report.prior_determined = open.saturating_sub(w.ncols());
+    describe(layout, &analysis.summary, n, w, report);
+    report.statements.extend(analysis.appended.iter().cloned());
 }
 
 /// How strongly the data observe each analytic gauge freedom, after the nuisance parameters
@@ -403,7 +440,12 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
         a.len()
     };
     let mut st = Vec::new();
-    if report.extra_null_dim == 0 {
+    let prior = report.prior_determined;
+    let by_prior = format!(
+        "the readings alone leave {} direction(s) open beyond the {GAUGE_DIM} gauge freedoms, and the roughness prior of the smoothing determines {prior} of them (the curvature between the readings, with the prior's uncertainty)",
+        report.extra_null_dim + prior
+    );
+    if report.extra_null_dim == 0 && prior == 0 {
         st.push(format!(
             "All 21 error functions are identified (rank {} of {} parameters after the {} gauge constraints; condition number {:.3e}).",
             report.rank,
@@ -411,10 +453,17 @@ fn describe(layout: &ModelLayout, summary: &DataSummary, n: &Mat<f64>, w: &Mat<f
             GAUGE_DIM,
             report.condition_number
         ));
-    } else {
+    } else if report.extra_null_dim == 0 {
+        st.push(format!("All 21 error functions are identified: {by_prior}."));
+    } else if prior == 0 {
         st.push(format!(
             "{} of 21 error functions are identified individually; the data leave {} further direction(s) undetermined beyond the {} gauge freedoms, set to zero (minimum norm).",
             report.identified_functions, report.extra_null_dim, GAUGE_DIM
+        ));
+    } else {
+        st.push(format!(
+            "{} of 21 error functions are identified individually; {by_prior}; the other {} stay undetermined, set to zero (minimum norm).",
+            report.identified_functions, report.extra_null_dim
         ));
     }
     for &i in &not_observed {

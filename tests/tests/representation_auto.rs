@@ -415,6 +415,14 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
             solved.file.warnings
         );
         let sol = &solved.solution;
+        // The identifiability report speaks of what stays undetermined, as the map does: the
+        // four functions no range sees with a zero probe offset (ECX, EAZ, EBZ, ECZ), not the
+        // curvature between the stops that the prior determines (which read as "set to zero"
+        // and as the stations "determined only in combination" with every function).
+        let id = &sol.identifiability;
+        assert_eq!(id.identified_functions, 17, "seed {seed}: {:?}", id.statements);
+        assert!(id.prior_determined > 0 && id.combinations.is_empty(), "seed {seed}: {:?}", id.statements);
+        assert!(id.statements[0].contains("the roughness prior of the smoothing determines"), "{:?}", id.statements);
         let unc = sol.uncertainty();
         let (mut worst, mut worst_i, mut n, mut interpolated, mut e2, mut v2) = (0.0f64, 0.0f64, 0, 0, 0.0, 0.0);
         let grid = predict::grid(&auto.layout.travel, 0.035);
