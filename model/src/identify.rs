@@ -135,6 +135,20 @@ pub(crate) struct Analysis {
     pub appended: Vec<String>,
 }
 
+impl Analysis {
+    /// An analysis that adds no constraint (`dim` parameters): everything is identifiable, or
+    /// the analysis failed and says so in `report`.
+    fn without_directions(report: Identifiability, dim: usize, summary: &DataSummary) -> Analysis {
+        Analysis {
+            report,
+            extra_constraints: Mat::zeros(0, dim),
+            directions: Mat::zeros(dim, 0),
+            summary: summary.clone(),
+            appended: Vec::new(),
+        }
+    }
+}
+
 /// Threshold on a gauge freedom's observability (relative eigenvalue) above which it is
 /// reported as observed by the data.
 const GAUGE_OBSERVED: f64 = 1e-6;
@@ -175,13 +189,7 @@ pub(crate) fn analyse(
         report.rank = z.dim();
         gauge_check(layout, n, lambda_max_estimate(m), &gauge_basis, &mut report);
         describe(layout, summary, n, &Mat::zeros(dim, 0), &mut report);
-        return Analysis {
-            report,
-            extra_constraints: Mat::zeros(0, dim),
-            directions: Mat::zeros(dim, 0),
-            summary: summary.clone(),
-            appended: Vec::new(),
-        };
+        return Analysis::without_directions(report, dim, summary);
     }
     // Eigenvalues (the singular values of the scaled, constrained design, squared);
     // eigenvectors only when something is undetermined.
@@ -189,13 +197,7 @@ pub(crate) fn analyse(
         Ok(l) => l,
         Err(e) => {
             report.warnings.push(format!("identifiability analysis failed: {e:?}"));
-            return Analysis {
-                report,
-                extra_constraints: Mat::zeros(0, dim),
-                directions: Mat::zeros(dim, 0),
-                summary: summary.clone(),
-                appended: Vec::new(),
-            };
+            return Analysis::without_directions(report, dim, summary);
         }
     };
     let lmax = lam.iter().cloned().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
