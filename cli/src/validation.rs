@@ -140,7 +140,16 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
             if let Some(k) = r.comparison.as_ref().map(|c| &c.points[i]) {
                 row.push_str(&format!("  {:>11.3}  {:>7.3}", k.measured_m * 1e6, k.difference_m * 1e6));
             }
+            if p.interpolated {
+                row.push_str("  i");
+            }
             let _ = writeln!(out, "{row}");
+        }
+        if r.predicted.iter().any(|p| p.interpolated) {
+            let _ = writeln!(
+                out,
+                "  i: interpolated, at or from a point between the measured positions of an axis the readings resolve only there (e.g. a tracer's stops): a feature shorter than their step is not seen there"
+            );
         }
         match &r.comparison {
             Some(c) => {
@@ -170,12 +179,12 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
     out
 }
 
-/// Writes all lines as CSV: `line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en`
-/// (measurement columns empty without a measurement).
+/// Writes all lines as CSV: `line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en,interpolated`
+/// (measurement columns empty without a measurement; `interpolated` 1 as the table's `i`).
 pub fn write_csv(path: &Path, results: &[LineResult]) -> Result<()> {
     let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut w = std::io::BufWriter::new(f);
-    writeln!(w, "line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en")?;
+    writeln!(w, "line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en,interpolated")?;
     for r in results {
         for (i, p) in r.predicted.iter().enumerate() {
             let m = r
@@ -188,8 +197,8 @@ pub fn write_csv(path: &Path, results: &[LineResult]) -> Result<()> {
                 .unwrap_or_else(|| ",,,".into());
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{}",
-                r.line.name, p.s_m, p.x.x, p.x.y, p.x.z, p.deviation_m, p.sigma_m, m
+                "{},{},{},{},{},{},{},{},{}",
+                r.line.name, p.s_m, p.x.x, p.x.y, p.x.z, p.deviation_m, p.sigma_m, m, p.interpolated as u8
             )?;
         }
     }

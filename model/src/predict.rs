@@ -194,6 +194,12 @@ impl<'a> Uncertainty<'a> {
         Axis::ALL.iter().any(|&a| self.resolution[a.index()].leaves_open(a.coord(x)))
     }
 
+    /// Whether `x` lies between the measured positions of an axis the readings resolve only
+    /// there ([`AxisResolution::AtPositions`]): a prediction there is interpolated.
+    pub fn interpolates_at(&self, x: &Point3<f64>) -> bool {
+        Axis::ALL.iter().any(|&a| self.resolution[a.index()].interpolation_scale_at(a.coord(x)).is_some())
+    }
+
     /// The scale of the covariance of a prediction at `x`: the largest interpolation scale of
     /// the axes `x` lies between the positions of ([`AxisResolution::interpolation_scale_at`]),
     /// 1 where it lies at the positions of all of them.

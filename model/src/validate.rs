@@ -103,6 +103,10 @@ pub struct PositioningPoint {
     /// Standard uncertainty of the deviation (from the model covariance), metres; infinite
     /// where the data do not determine the deviation.
     pub sigma_m: f64,
+    /// The target or the line's start lies between the measured positions of an axis the
+    /// readings resolve only there (a tracer's stops): the deviation is interpolated, under the
+    /// smoothness the readings showed elsewhere ([`crate::predict::PointError::interpolated`]).
+    pub interpolated: bool,
 }
 
 /// Predicts the positioning deviations of `line` at the `targets` (distances from the start)
@@ -125,6 +129,7 @@ pub fn predict_positioning(
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
     let start_scale = unc.interpolation_scale_at(&line.start);
+    let start_interpolated = unc.interpolates_at(&line.start);
     // The interpolation's shape along the line at a point
     // ([`crate::predict::interpolation_shape_covariance`]) as the standard uncertainty of its
     // bound. At the target and at the start the two bounds are not independent (the same
@@ -152,7 +157,8 @@ pub fn predict_positioning(
                     (quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2)).max(0.0).sqrt()
                 }
             };
-            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m }
+            let interpolated = start_interpolated || unc.interpolates_at(&x);
+            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m, interpolated }
         })
         .collect()
 }

@@ -459,6 +459,23 @@ fn the_tracer_case_gives_a_map_within_its_uncertainty() {
             for s in &solved.file.representation_choice.as_ref().unwrap().statements {
                 eprintln!("  {s}");
             }
+            // A validation line along X through a stop of Y and Z: its targets are interpolated
+            // between the stops of X (70 mm apart) and at them not; through a point between the
+            // stops of Y, all of them are.
+            let along_x = |y: f64, z: f64| volcal::validate::Line {
+                name: "X".into(),
+                start: nalgebra::Point3::new(0.0, y, z),
+                end: nalgebra::Point3::new(0.7, y, z),
+            };
+            let targets = [0.07, 0.105, 0.14];
+            let flags = |l| {
+                volcal::validate::predict_positioning(&sol.model, &unc, &l, &p, &targets)
+                    .iter()
+                    .map(|t| t.interpolated)
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(flags(along_x(-0.25, -0.35)), [false, true, false]);
+            assert_eq!(flags(along_x(-0.225, -0.35)), [true, true, true]);
         }
         assert!(worst.max(worst_i) < 5.0, "seed {seed}: |error| / sigma {}", worst.max(worst_i));
         a2 += e2 / n as f64;
