@@ -194,21 +194,13 @@ impl<'a> Uncertainty<'a> {
         Axis::ALL.iter().any(|&a| self.resolution[a.index()].leaves_open(a.coord(x)))
     }
 
-    /// Whether `x` lies between the measured positions of an axis the readings resolve only
-    /// there ([`AxisResolution::AtPositions`]): a prediction there is interpolated.
-    pub fn interpolates_at(&self, x: &Point3<f64>) -> bool {
-        Axis::ALL.iter().any(|&a| self.resolution[a.index()].interpolation_scale_at(a.coord(x)).is_some())
-    }
-
-    /// The scale of the covariance of a prediction at `x`: the largest interpolation scale of
-    /// the axes `x` lies between the positions of ([`AxisResolution::interpolation_scale_at`]),
-    /// 1 where it lies at the positions of all of them.
-    pub fn interpolation_scale_at(&self, x: &Point3<f64>) -> f64 {
-        Axis::ALL
-            .iter()
-            .filter_map(|&a| self.resolution[a.index()].interpolation_scale_at(a.coord(x)))
-            .reduce(f64::max)
-            .unwrap_or(1.0)
+    /// Where `x` lies between the measured positions of an axis the readings resolve only there
+    /// ([`AxisResolution::AtPositions`]), so that a prediction there is interpolated: the scale
+    /// of its covariance, the largest interpolation scale of those axes
+    /// ([`AxisResolution::interpolation_scale_at`]); `None` where it lies at the positions of
+    /// all of them (scale 1).
+    pub fn interpolation_scale_at(&self, x: &Point3<f64>) -> Option<f64> {
+        Axis::ALL.iter().filter_map(|&a| self.resolution[a.index()].interpolation_scale_at(a.coord(x))).reduce(f64::max)
     }
 
     /// How much the linear functional with sparse rows `(index, value)` (one row per output

@@ -129,7 +129,6 @@ pub fn predict_positioning(
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
     let start_scale = unc.interpolation_scale_at(&line.start);
-    let start_interpolated = unc.interpolates_at(&line.start);
     // The interpolation's shape along the line at a point
     // ([`crate::predict::interpolation_shape_covariance`]) as the standard uncertainty of its
     // bound. At the target and at the start the two bounds are not independent (the same
@@ -143,6 +142,7 @@ pub fn predict_positioning(
         .iter()
         .map(|&s| {
             let x = line.at(s);
+            let scale_at = unc.interpolation_scale_at(&x);
             let dev = n.dot(&(model.error(&x, p) - e0));
             let mut g: Vec<(usize, f64)> = model.layout.sensitivity(&x, p).project(&n).collect();
             g.extend(g0.iter().map(|&(k, v)| (k, -v)));
@@ -153,12 +153,11 @@ pub fn predict_positioning(
                 (false, _) => f64::INFINITY,
                 (true, false) => 0.0,
                 (true, true) => {
-                    let scale = start_scale.max(unc.interpolation_scale_at(&x));
+                    let scale = start_scale.unwrap_or(1.0).max(scale_at.unwrap_or(1.0));
                     (quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2)).max(0.0).sqrt()
                 }
             };
-            let interpolated = start_interpolated || unc.interpolates_at(&x);
-            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m, interpolated }
+            PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m, interpolated: start_scale.or(scale_at).is_some() }
         })
         .collect()
 }
