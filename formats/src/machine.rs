@@ -7,7 +7,8 @@
 //! travel: {x: [0, 1.0], y: [0, 0.8], z: [-0.6, 0]}   # metres
 //! # optional, with these defaults:
 //! representation: auto                # from the data: knots the readings support, REML smoothing
-//!                                     # ({kind: auto, max_intervals: 16}), or e.g. {kind: bspline, intervals: 12}
+//!                                     # ({kind: auto, max_intervals: 16}; tables: true also tries linear tables
+//!                                     # where the readings show kinks), or e.g. {kind: bspline, intervals: 12}
 //! representations: {EXX: {kind: polynomial, degree: 6}}   # per-function overrides (not smoothed)
 //! gauge: patent                       # or datum
 //! noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_m: 1.0e-7, tracer_ppm: 0.2}
@@ -86,8 +87,10 @@ impl Default for SimulationSpec {
 /// The `representation` of a machine file: chosen from the data (`auto`, the default), or given.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RepresentationSpec {
-    /// `auto` or `{kind: auto, max_intervals: N}`: per axis the cubic B-spline knots the
-    /// readings' positions support, each function smoothed with REML ([`volcal::flexibility`]).
+    /// `auto` or `{kind: auto, max_intervals: N, tables: false}`: per axis the cubic B-spline
+    /// knots the readings' positions support, each function smoothed with REML, and with
+    /// `tables: true` linear tables where the readings show kinks at equally spaced nodes
+    /// ([`volcal::flexibility`]).
     Auto(Auto),
     /// The same representation for every function, as written.
     Given(Representation),
@@ -108,9 +111,15 @@ impl Serialize for RepresentationSpec {
                     kind: &'static str,
                     start_intervals: usize,
                     max_intervals: usize,
+                    tables: bool,
                 }
-                AutoOut { kind: "auto", start_intervals: a.start_intervals, max_intervals: a.max_intervals }
-                    .serialize(s)
+                AutoOut {
+                    kind: "auto",
+                    start_intervals: a.start_intervals,
+                    max_intervals: a.max_intervals,
+                    tables: a.tables,
+                }
+                .serialize(s)
             }
             RepresentationSpec::Given(r) => r.serialize(s),
         }
@@ -138,9 +147,13 @@ impl<'de> Deserialize<'de> for RepresentationSpec {
                         Some("kind") => {}
                         Some("max_intervals") => auto.max_intervals = count("max_intervals", val)?,
                         Some("start_intervals") => auto.start_intervals = count("start_intervals", val)?,
+                        Some("tables") => {
+                            auto.tables =
+                                val.as_bool().ok_or_else(|| D::Error::custom("tables must be true or false"))?
+                        }
                         _ => {
                             return Err(D::Error::custom(format!(
-                                "unknown key {k:?} for kind auto (expected start_intervals, max_intervals)"
+                                "unknown key {k:?} for kind auto (expected start_intervals, max_intervals, tables)"
                             )))
                         }
                     }
@@ -390,7 +403,9 @@ mod tests {
         assert_eq!(m.auto, Some(Auto::default()), "auto is the default representation");
         let head = "topology: FXYZ\ntravel: {x: [0, 1], y: [0, 1], z: [0, 1]}\n";
         let m = Machine::parse(&format!("{head}representation: {{kind: auto, max_intervals: 9}}\n")).unwrap();
-        assert_eq!(m.auto, Some(Auto { start_intervals: 9, max_intervals: 9 }));
+        assert_eq!(m.auto, Some(Auto { start_intervals: 9, max_intervals: 9, tables: false }));
+        let m = Machine::parse(&format!("{head}representation: {{kind: auto, tables: true}}\n")).unwrap();
+        assert!(m.auto.unwrap().tables);
         let m = Machine::parse(&format!("{head}representation: {{kind: bspline, intervals: 12}}\n")).unwrap();
         assert_eq!(m.auto, None);
         let e = Machine::parse(&format!("{head}representation: {{kind: auto, knots: 9}}\n")).unwrap_err();

@@ -113,6 +113,21 @@ pub struct KnotsEntry {
     /// The refinement tests (doubling the knots, score test against the smoothed fit).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tests: Vec<RefinementEntry>,
+    /// Where the axis's functions are linear tables instead of cubic B-splines (the readings
+    /// show kinks at equally spaced nodes): `volcal::flexibility::TableChoice`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<TableEntry>,
+}
+
+/// Linear tables chosen for an axis by the Akaike criterion.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TableEntry {
+    /// Intervals of the tables, equal over the travel.
+    pub intervals: usize,
+    /// How much lower the criterion is with the tables on this axis alone (others held).
+    pub aic_gain: f64,
+    /// How much lower it is for the final fit.
+    pub final_gain: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -179,8 +194,9 @@ impl RepresentationChoice {
             ));
             if !smoothest.is_empty() {
                 statements.push(format!(
-                    "The readings show no detail beyond a parabola in {}; their uncertainty keeps {} parameters' \
+                    "The readings show no detail beyond a parabola{} in {}; their uncertainty keeps {} parameters' \
                      worth of detail that the readings could not reveal (a local feature between them is not ruled out).",
+                    if knots.iter().any(|k| k.table.is_some()) { " (a straight line for the tables)" } else { "" },
                     smoothest.join(", "),
                     volcal::smoothing::DETAIL_FLOOR
                 ));
@@ -228,6 +244,11 @@ impl RepresentationChoice {
                         KnotBound::Positions => "positions".into(),
                         KnotBound::Data => "data".into(),
                     },
+                    table: k.table.map(|t| TableEntry {
+                        intervals: t.intervals,
+                        aic_gain: t.aic_gain,
+                        final_gain: t.final_gain,
+                    }),
                     tests: k
                         .tests
                         .iter()

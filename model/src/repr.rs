@@ -396,6 +396,24 @@ impl Basis {
         Some(r)
     }
 
+    /// For a table, one row per inner node: the jump of the slope there, `(v_{k-1} - 2 v_k +
+    /// v_{k+1}) / h`, over `sqrt(h)` (the curvature of the kink spread over one interval), so
+    /// that the rows' Gram matrix is the table's roughness: the straight lines are free, each
+    /// kink costs its squared size. `None` for other representations or a table of one interval.
+    pub fn kink_rows(&self) -> Option<Mat<f64>> {
+        let Representation::Table { nodes } = self.repr else { return None };
+        if nodes < 3 {
+            return None;
+        }
+        let h = self.length() / (nodes - 1) as f64;
+        let w = 1.0 / (h * h.sqrt());
+        Some(Mat::from_fn(nodes - 2, nodes, |k, j| match j as isize - k as isize {
+            0 | 2 => w,
+            1 => -2.0 * w,
+            _ => 0.0,
+        }))
+    }
+
     /// For a cubic B-spline, one row per knot interval: `sqrt(h) b'''` at the interval (the
     /// third derivative is constant on it), so that the rows' Gram matrix is
     /// [`Basis::roughness`]`(3)` and each row is the roughness of one interval. `None` for other
@@ -543,6 +561,26 @@ mod tests {
             Representation::BSpline { intervals: 7 },
             Representation::BSpline { intervals: 1 },
         ]
+    }
+
+    #[test]
+    fn a_tables_kink_rows_spare_lines_and_weigh_each_kink_by_its_size() {
+        let b = Basis::new(Representation::Table { nodes: 11 }, -0.5, 0.2);
+        let rows = b.kink_rows().unwrap();
+        assert_eq!((rows.nrows(), rows.ncols()), (9, 11));
+        let apply = |c: &[f64]| (0..9).map(|k| (0..11).map(|j| rows[(k, j)] * c[j]).sum::<f64>()).collect::<Vec<_>>();
+        let line = b.fit(|q| 3.0 * q - 0.1);
+        assert!(apply(&line).iter().all(|v| v.abs() < 1e-9));
+        // |q - q5|: the slope jumps by 2 at node 5 and nowhere else; its row is 2 / sqrt(h).
+        let h = 0.07;
+        let vee = b.fit(|q| (q + 0.5 - 5.0 * h).abs());
+        let r = apply(&vee);
+        for (k, v) in r.iter().enumerate() {
+            let want = if k + 1 == 5 { 2.0 / h.sqrt() } else { 0.0 };
+            assert!((v - want).abs() < 1e-8, "row {k}: {v} against {want}");
+        }
+        assert!(Basis::new(Representation::Table { nodes: 2 }, 0.0, 1.0).kink_rows().is_none());
+        assert!(Basis::new(Representation::BSpline { intervals: 4 }, 0.0, 1.0).kink_rows().is_none());
     }
 
     #[test]

@@ -225,9 +225,10 @@ impl Penalty {
                         })
                         .collect()
                 }
-                None => match basis.roughness(PENALTY_ORDER) {
-                    Some(s) => vec![factor_psd(&s, 1e-10)],
-                    None => continue,
+                None => match (basis.kink_rows(), basis.roughness(PENALTY_ORDER)) {
+                    (Some(rows), _) => vec![rows],
+                    (None, Some(s)) => vec![factor_psd(&s, 1e-10)],
+                    (None, None) => continue,
                 },
             };
             for (piece, r) in pieces.into_iter().enumerate() {

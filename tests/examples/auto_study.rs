@@ -19,8 +19,11 @@ fn main() {
     let filter = args.get(3).cloned().unwrap_or_default();
     let d = Auto::default();
     let env = |k: &str, v: usize| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(v);
-    let auto =
-        Auto { start_intervals: env("AUTO_START", d.start_intervals), max_intervals: env("AUTO_MAX", d.max_intervals) };
+    let auto = Auto {
+        start_intervals: env("AUTO_START", d.start_intervals),
+        max_intervals: env("AUTO_MAX", d.max_intervals),
+        tables: env("AUTO_TABLES", 0) != 0,
+    };
     println!("| case | seeds | auto map RMS um | oracle map RMS um | auto/oracle | actual/predicted (95 % over seeds) | max abs z | abs z > 3 | interpolated: max abs z, abs z > 3 | not determined | whole map within its 95 % simultaneous band (k) | solve s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in suite() {

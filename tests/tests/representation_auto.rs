@@ -91,6 +91,27 @@ fn every_case_is_honest_and_smooth_truths_are_near_the_oracle() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// With `tables: true`, linear tables where the readings show kinks at equally spaced nodes, and
+/// nowhere else (`flexibility::choose_tables`): the paper's 11-node tables measured densely by
+/// beams are tables of 10 intervals on every axis; a polynomial or bump truth measured as
+/// densely takes none.
+#[test]
+fn kinks_at_equally_spaced_nodes_give_linear_tables() {
+    use volcal_tests::auto_study::{case, Density, Measure};
+    let auto = Auto { tables: true, ..Auto::default() };
+    let tables = |c: &volcal_tests::auto_study::Case, seed: u64| -> Vec<Option<usize>> {
+        run(c, seed, &auto).knots.iter().map(|k| k.table.map(|t| t.intervals)).collect()
+    };
+    for seed in SEEDS {
+        let t = tables(&case(Family::PaperTables, "FYXZ", Measure::Beams, Density::Dense), seed);
+        assert_eq!(t, vec![Some(10); 3], "seed {seed}");
+        for family in [Family::PolySine, Family::PiecewiseBump] {
+            let t = tables(&case(family, "FXYZ", Measure::Beams, Density::Dense), seed);
+            assert_eq!(t, vec![None; 3], "{} seed {seed}", family.name());
+        }
+    }
+}
+
 /// `auto_study`'s case over a piecewise truth with a local bump, FXYZ, measured by `measure`
 /// at `density`.
 fn fxyz_over_a_bump(
@@ -154,9 +175,11 @@ fn against_the_determined_knots(
 fn between_the_stops_the_uncertainty_is_the_priors() {
     use volcal::flexibility::KnotBound;
     let case = fxyz_over_a_bump(volcal_tests::auto_study::Measure::Tracer, volcal_tests::auto_study::Density::Sparse);
-    let (b, o) = against_the_determined_knots(&case, &Auto { start_intervals: 8, max_intervals: 8 }, |knots| {
-        knots.iter().all(|k| (k.determined, k.intervals, k.bound) == (8, 12, KnotBound::Positions))
-    });
+    let (b, o) = against_the_determined_knots(
+        &case,
+        &Auto { start_intervals: 8, max_intervals: 8, ..Auto::default() },
+        |knots| knots.iter().all(|k| (k.determined, k.intervals, k.bound) == (8, 12, KnotBound::Positions)),
+    );
     assert!(b.auto_rms_m <= o.auto_rms_m, "map error {} um against {} um", b.auto_rms_m * 1e6, o.auto_rms_m * 1e6);
     assert!(b.mc_ratio < o.mc_ratio, "actual / predicted {} against {}", b.mc_ratio, o.mc_ratio);
     // (With the knots at `max_intervals` they are at the limit, not flagged interpolated:
@@ -303,7 +326,7 @@ fn the_readings_tell_where_the_interpolation_between_the_stops_fails() {
 #[test]
 fn an_axis_refined_up_to_its_stops_goes_beyond_them() {
     let case = fxyz_over_a_bump(volcal_tests::auto_study::Measure::Tracer, volcal_tests::auto_study::Density::Dense);
-    against_the_determined_knots(&case, &Auto { start_intervals: 12, max_intervals: 18 }, |knots| {
+    against_the_determined_knots(&case, &Auto { start_intervals: 12, max_intervals: 18, ..Auto::default() }, |knots| {
         knots.iter().all(|k| {
             k.determined == 18
                 && (k.intervals == 12 || (k.intervals == 27 && k.tests.last().is_some_and(|t| t.refined && t.to == 18)))
@@ -326,7 +349,7 @@ fn an_axis_refined_up_to_its_stops_goes_beyond_them() {
 fn a_misfit_inflates_the_noise_instead_of_collapsing_the_smoothing() {
     let case = sparse_fxyz_beams_over_a_bump();
     let (campaign, truth) = campaign(&case, 19);
-    let o = run_on(&case, &campaign, &truth, &Auto { start_intervals: 12, max_intervals: 12 });
+    let o = run_on(&case, &campaign, &truth, &Auto { start_intervals: 12, max_intervals: 12, ..Auto::default() });
     let ratio = o.auto_rms_m / o.predicted_rms_m;
     eprintln!(
         "{}, seed 19: noise scale {:.2}, map error {:.2} um RMS against {:.2} um predicted ({ratio:.2}), {:.2} um for the oracle",
