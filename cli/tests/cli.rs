@@ -328,3 +328,57 @@ fn rank_deficient_campaign_warns_and_exits_3() {
     assert!(t.contains("ECZ") && t.contains("cannot be identified"), "{t}");
     assert!(d.join("m.json").exists());
 }
+
+/// `{kind: auto, tables: true}`: over the paper's linear tables (11 nodes per function), measured
+/// densely by beams, `volcal solve` takes linear tables of 10 intervals on every axis, says so
+/// and why, and the model file keeps the choice with its layout; without the option (the
+/// two-line machine file) the functions stay cubic B-splines.
+#[test]
+fn tables_where_the_readings_show_kinks_at_equal_spacing() {
+    let dir = scratch("tables");
+    let csv = dir.join("beams.csv");
+    let paper = repo().join("launch_configs/machines/paper_cmm.yaml");
+    let plan = repo().join("launch_configs/plans/patent_example.yaml");
+    let o = volcal(&[
+        "simulate",
+        "--machine",
+        paper.to_str().unwrap(),
+        "--plan",
+        plan.to_str().unwrap(),
+        "--seed",
+        "11",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let head = "topology: FYXZ\ntravel: {x: [0, 0.7], y: [-0.5, 0], z: [-0.7, 0]}\n";
+    let solve = |name: &str, extra: &str| -> (String, serde_json::Value) {
+        let m = dir.join(format!("{name}.yaml"));
+        std::fs::write(&m, format!("{head}{extra}")).unwrap();
+        let model = dir.join(format!("{name}.json"));
+        let o = volcal(&[
+            "solve",
+            csv.to_str().unwrap(),
+            "--machine",
+            m.to_str().unwrap(),
+            "--out",
+            model.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        (text(&o), serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap())
+    };
+    let (t, model) = solve("tables", "representation: {kind: auto, tables: true}\n");
+    for axis in ["X", "Y", "Z"] {
+        assert!(t.contains(&format!("  {axis}: linear tables of 10 intervals")), "{t}");
+    }
+    let knots = model["representation_choice"]["knots"].as_array().expect("knots");
+    assert_eq!(knots.len(), 3);
+    assert!(
+        knots.iter().all(|k| k["table"]["intervals"] == 10 && k["table"]["final_gain"].as_f64() > Some(0.0)),
+        "{knots:?}"
+    );
+    let (t, model) = solve("splines", "");
+    assert!(!t.contains("linear tables"), "{t}");
+    let knots = model["representation_choice"]["knots"].as_array().expect("knots");
+    assert!(knots.iter().all(|k| k.get("table").is_none()), "{knots:?}");
+}
