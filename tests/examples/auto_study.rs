@@ -7,7 +7,8 @@
 //! `AUTO_SEEDS=1` adds one line per seed; `AUTO_DEBUG=1` adds each solve's chi-square (also per
 //! instrument) and, per function, its error against the truth with its smoothing parameter and
 //! effective parameters. `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops)
-//! of every case, for robustness sweeps.
+//! of every case, for robustness sweeps. `AUTO_TABLES=1` tries linear tables (`Auto::tables`)
+//! and says in how many campaigns they were taken.
 
 use volcal::flexibility::Auto;
 use volcal_tests::auto_study::{run, suite, summarise, Outcome};
@@ -87,6 +88,16 @@ fn main() {
             k[2].describe(),
             outcomes[0].edf
         );
+        if auto.tables {
+            let with: Vec<usize> =
+                outcomes.iter().map(|o| o.knots.iter().filter(|k| k.table.is_some()).count()).collect();
+            eprintln!(
+                "  linear tables taken in {} of {} campaigns ({} axes in all)",
+                with.iter().filter(|&&n| n > 0).count(),
+                outcomes.len(),
+                with.iter().sum::<usize>()
+            );
+        }
         eprintln!("  actual / predicted at the points the readings resolve: {:.3}", s.mc_ratio_resolved);
         if outcomes.iter().any(|o| !o.interpolation.is_empty()) {
             // The campaigns whose interpolation the readings contradict on some axis, and the rest.
