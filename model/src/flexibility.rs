@@ -250,6 +250,12 @@ fn layout_with(
     ModelLayout::new(topology.clone(), travel, reprs)
 }
 
+/// The error functions of `axis` that `auto` chooses (those without a representation in
+/// `overrides`), canonical order.
+fn auto_functions(axis: Axis, overrides: &[Option<Representation>; 18]) -> Vec<ErrorFunction> {
+    (0..6).map(|m| ErrorFunction::from_index(axis.index() * 6 + m)).filter(|f| overrides[f.index()].is_none()).collect()
+}
+
 /// The smoothing of the auto layout: every function without an override, by REML.
 fn smoothing_for(overrides: &[Option<Representation>; 18]) -> Smoothing {
     let mut s = Smoothing::reml();
@@ -455,10 +461,7 @@ fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
             for a in Axis::ALL {
                 let k = &knots[a.index()];
                 let most = bound[a.index()].0;
-                let functions: Vec<ErrorFunction> = (0..6)
-                    .map(|m| ErrorFunction::from_index(a.index() * 6 + m))
-                    .filter(|f| overrides[f.index()].is_none())
-                    .collect();
+                let functions = auto_functions(a, overrides);
                 // An axis whose finer knots the readings and the prior did not determine is not tried again.
                 if k.intervals >= most || functions.is_empty() || k.tests.last().is_some_and(|t| !t.determined) {
                     continue;
@@ -545,19 +548,21 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
         return chosen;
     }
     let intervals = chosen.knots.clone().map(|k| k.intervals);
-    let base_layout = layout_with(cx.topology, cx.travel, intervals, cx.overrides);
     let phi = report.noise_scale.max(1.0);
     let aic = |s: &Solution| s.stats.chi2 / phi + 2.0 * (s.stats.n_obs - s.stats.dof) as f64;
-    let base_open = left_open(&chosen.solution, &base_layout);
+    let base_open = left_open(&chosen.solution, &chosen.solution.model.layout);
     let base_aic = aic(&chosen.solution);
     let positions = crate::identify::DataSummary::positions_of(&cx.obs.x);
     let mut reprs = *cx.overrides;
     let mut screened: [Option<(usize, f64)>; 3] = [None; 3];
     for a in Axis::ALL {
-        let functions: Vec<usize> = (0..6).map(|m| a.index() * 6 + m).filter(|&i| cx.overrides[i].is_none()).collect();
+        let functions: Vec<usize> = auto_functions(a, cx.overrides).iter().map(|f| f.index()).collect();
         if functions.is_empty() {
             continue;
         }
+        // The other axes' smoothing held, this axis's functions unpenalised.
+        let mut held = Smoothing::fixed_from(&report);
+        functions.iter().for_each(|&i| held.penalised[i] = false);
         let [lo, hi] = cx.travel.range(a);
         let inside = inside_travel(&cx.travel, a, &positions);
         let mut best: Option<(f64, usize)> = None;
@@ -568,9 +573,7 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
             let mut o = *cx.overrides;
             functions.iter().for_each(|&i| o[i] = Some(Representation::Table { nodes: n + 1 }));
             let layout = layout_with(cx.topology, cx.travel, intervals, &o);
-            let mut smoothing = Smoothing::fixed_from(&report);
-            functions.iter().for_each(|&i| smoothing.penalised[i] = false);
-            let opts = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
+            let opts = SolveOptions { smoothing: Some(held.clone()), ..cx.opts.clone() };
             let Ok(f) = fit(&layout, cx.obs, &opts, &[]) else { continue };
             if left_open(f.solution(), &layout) > base_open {
                 continue;
