@@ -4,9 +4,10 @@
 //! prints, per case, the ratio of map errors (auto / oracle), the Monte Carlo calibration
 //! (actual / predicted map RMS), the honesty figures (among them in how many campaigns the whole
 //! map lies within its 95 % simultaneous band, [`volcal::band`]) and the time of one auto solve.
-//! `AUTO_SEEDS=1` adds one line per seed; `AUTO_DEBUG=1` adds each solve's chi-square (also per
-//! instrument) and, per function, its error against the truth with its smoothing parameter and
-//! effective parameters. `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops)
+//! `AUTO_SEEDS=1` adds one line per seed (with the knot intervals per axis, `t` where the axis
+//! took linear tables, and the smallest first refinement test, which gates the tables);
+//! `AUTO_DEBUG=1` adds each solve's chi-square (also per instrument) and, per function, its
+//! error against the truth with its smoothing parameter and effective parameters. `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops)
 //! of every case, for robustness sweeps. `AUTO_TABLES=1` tries linear tables (`Auto::tables`)
 //! and says in how many campaigns they were taken.
 
@@ -35,13 +36,15 @@ fn main() {
         if std::env::var_os("AUTO_SEEDS").is_some() {
             for (s, o) in (first..).zip(&outcomes) {
                 eprintln!(
-                    "  seed {s}: auto {:.3} um, oracle {:.3} um, located oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}{}",
+                    "  seed {s}: auto {:.3} um, oracle {:.3} um, located oracle {:.3} um, predicted {:.3} um, max z {:.2}, edf {:.1}, intervals {}, first refinement test p {:.1e}{}",
                     o.auto_rms_m * 1e6,
                     o.oracle_rms_m * 1e6,
                     o.located_rms_m * 1e6,
                     o.predicted_rms_m * 1e6,
                     o.max_z,
                     o.edf,
+                    o.knots.iter().map(|k| format!("{}{}", k.intervals, if k.table.is_some() { "t" } else { "" })).collect::<Vec<_>>().join("/"),
+                    o.knots.iter().filter_map(|k| k.tests.first()).map(|t| t.p_value).fold(1.0, f64::min),
                     o.interpolation
                         .iter()
                         .map(|c| format!(", interpolation {} {:.2} (p {:.1e})", c.axis.letter(), c.ratio(), c.p_value))
