@@ -1,0 +1,182 @@
+//! Issue 12 on data we did not simulate: campaigns from an independent simulator
+//! (tests/py/independent_campaign.py: NumPy, its own machine, plan and readings from DESIGN.md's
+//! conventions alone, none of volcal's code), solved as a new user would, `volcal solve` with
+//! the two-line machine file, and checked where no gauge can hide anything: the positioning
+//! deviation an interferometer reads along validation lines that are none of the campaign's
+//! (`volcal validate --line`), against the simulator's noise-free truth.
+//!
+//! The truth family (a smooth Gaussian-process draw per function, squared-exponential, length
+//! scale 0.15 to 0.4 of the travel) is none of volcal's representations and none of the families
+//! `representation_auto` was developed on; the seeds here (101-106) were never used to choose
+//! anything. The bounds were set before the test was first run on them: no deviation beyond 5
+//! standard uncertainties, at most 1 % beyond 3 (a calibrated uncertainty gives 0.27 %), and
+//! the RMS of the deviations over their uncertainties within 0.7 to 1.3 per method.
+
+use std::path::Path;
+use std::process::Command;
+
+const SEEDS: std::ops::Range<u64> = 101..107;
+
+/// One validation target: the truth's deviation, the model's prediction and its standard
+/// uncertainty.
+struct Target {
+    line: String,
+    truth_m: f64,
+    predicted_m: f64,
+    sigma_m: f64,
+}
+
+fn run(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("runs");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    // `volcal solve` exits 3 where some functions are not identifiable (the tracer's rotations of
+    // Z with the reflector at the tool): the model is written and says so.
+    assert!(matches!(out.status.code(), Some(0) | Some(3)), "{cmd:?} failed:\n{text}");
+    text
+}
+
+/// Simulates `method` for `seed` with the independent simulator, solves it with the two-line
+/// machine file and predicts every validation line.
+fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 2]; 3], seed: u64) -> Vec<Target> {
+    let root = volcal_tests::repo_root();
+    let d = dir.join(format!("{method}-{seed}"));
+    let travel_arg = travel.iter().map(|[lo, hi]| format!("{lo},{hi}")).collect::<Vec<_>>().join(";");
+    run(Command::new(py).arg(root.join("tests/py/independent_campaign.py")).args([
+        "--method",
+        method,
+        "--topology",
+        topology,
+        "--travel",
+        &travel_arg,
+        "--seed",
+        &seed.to_string(),
+        "--points",
+        if method == "tracer" { "11" } else { "25" },
+        "--out",
+        d.to_str().unwrap(),
+    ]));
+    let machine = d.join("machine.yaml");
+    let [x, y, z] = travel;
+    std::fs::write(
+        &machine,
+        format!(
+            "topology: {topology}\ntravel: {{x: [{}, {}], y: [{}, {}], z: [{}, {}]}}\n",
+            x[0], x[1], y[0], y[1], z[0], z[1]
+        ),
+    )
+    .unwrap();
+    let model = d.join("model.json");
+    let exe = env!("CARGO_BIN_EXE_volcal");
+    run(Command::new(exe)
+        .arg("solve")
+        .arg(d.join("campaign.csv"))
+        .arg("--machine")
+        .arg(&machine)
+        .arg("--out")
+        .arg(&model));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("validation.json")).unwrap()).unwrap();
+    let mut out = Vec::new();
+    for (k, line) in v["lines"].as_array().unwrap().iter().enumerate() {
+        let triple = |key: &str| {
+            line[key].as_array().unwrap().iter().map(|c| c.as_f64().unwrap().to_string()).collect::<Vec<_>>().join(",")
+        };
+        let csv = d.join(format!("line{k}.csv"));
+        run(Command::new(exe).arg("validate").arg(&model).args([
+            "--line",
+            &format!("{}:{}", triple("start"), triple("end")),
+            "--probe",
+            &triple("probe"),
+            "--points",
+            "11",
+            "--out",
+            csv.to_str().unwrap(),
+        ]));
+        let truth: Vec<f64> = line["deviation_m"].as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut rows = text.lines();
+        let head: Vec<&str> = rows.next().unwrap().split(',').collect();
+        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let (pc, uc) = (col("predicted_m"), col("u_predicted_m"));
+        for (i, row) in rows.enumerate() {
+            // The start, where the interferometer is zeroed, has no deviation to test.
+            if i == 0 {
+                continue;
+            }
+            let f: Vec<&str> = row.split(',').collect();
+            let (Ok(p), Ok(u)) = (f[pc].parse::<f64>(), f[uc].parse::<f64>()) else { continue };
+            if !p.is_finite() || !u.is_finite() {
+                continue;
+            }
+            out.push(Target {
+                line: format!("{} p=({})", line["name"].as_str().unwrap(), triple("probe")),
+                truth_m: truth[i],
+                predicted_m: p,
+                sigma_m: u,
+            });
+        }
+    }
+    out
+}
+
+/// The figures of one method over the seeds; asserts the bounds.
+fn check(method: &str, targets: &[Target], expected: usize) {
+    let z: Vec<f64> = targets.iter().map(|t| (t.predicted_m - t.truth_m) / t.sigma_m).collect();
+    let max = z.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    let beyond_3 = z.iter().filter(|v| v.abs() > 3.0).count();
+    let rms_z = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    let actual = (targets.iter().map(|t| (t.predicted_m - t.truth_m).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+    let predicted = (targets.iter().map(|t| t.sigma_m.powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+    eprintln!(
+        "{method}: {} validation targets over {} seeds (of {expected} asked; the rest not determined): max |z| {max:.2}, |z| > 3 in {beyond_3}, RMS z {rms_z:.3}; actual / predicted RMS {:.3} ({:.3} um against {:.3} um)",
+        targets.len(),
+        SEEDS.count(),
+        actual / predicted,
+        actual * 1e6,
+        predicted * 1e6
+    );
+    // Per line, where the uncertainty is largest: what the readings leave to the prior.
+    let mut lines: Vec<String> = targets.iter().map(|t| t.line.clone()).collect();
+    lines.sort();
+    lines.dedup();
+    for l in &lines {
+        let of: Vec<&Target> = targets.iter().filter(|t| &t.line == l).collect();
+        let rms = |f: &dyn Fn(&Target) -> f64| (of.iter().map(|t| f(t).powi(2)).sum::<f64>() / of.len() as f64).sqrt();
+        eprintln!(
+            "  {l}: error RMS {:.3} um, standard uncertainty RMS {:.3} um, max |z| {:.2}",
+            rms(&|t| t.predicted_m - t.truth_m) * 1e6,
+            rms(&|t| t.sigma_m) * 1e6,
+            of.iter().map(|t| ((t.predicted_m - t.truth_m) / t.sigma_m).abs()).fold(0.0, f64::max)
+        );
+    }
+    // Where the readings contradict the interpolation between a tracer's stops, the targets there
+    // are not determined and get no number; most must get one, or nothing is tested.
+    assert!(
+        2 * targets.len() >= expected,
+        "{method}: only {} of {expected} validation targets were given a number",
+        targets.len()
+    );
+    assert!(max <= 5.0, "{method}: a validation deviation {max:.2} standard uncertainties from the truth");
+    assert!(beyond_3 as f64 <= 0.01 * z.len() as f64, "{method}: {beyond_3} of {} beyond 3 sigma", z.len());
+    assert!((0.7..=1.3).contains(&rms_z), "{method}: RMS of deviation / uncertainty {rms_z:.3}");
+}
+
+#[test]
+fn fixed_beams_from_an_independent_simulator_are_predicted_within_their_uncertainty() {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = volcal_tests::scratch("independent-beams");
+    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
+    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "beams", "FXYZ", travel, s)).collect();
+    // 9 lines at each of the 3 probe offsets, 10 targets each beyond the start.
+    check("fixed beams, FXYZ", &targets, SEEDS.count() * 27 * 10);
+}
+
+#[test]
+fn a_laser_tracer_from_an_independent_simulator_is_predicted_within_its_uncertainty() {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = volcal_tests::scratch("independent-tracer");
+    // The issue's case: the paper's travel and axis stacking, 4 stations, the 12 edges, 11 stops
+    // per edge, one continuous track per station (528 ranges).
+    let travel = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
+    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "tracer", "FYXZ", travel, s)).collect();
+    check("laser tracer, FYXZ", &targets, SEEDS.count() * 9 * 10);
+}
