@@ -21,6 +21,8 @@ const SEEDS: std::ops::Range<u64> = 101..107;
 /// uncertainty.
 struct Target {
     line: String,
+    /// Index of the target along its line (0 the start, 10 the end).
+    index: usize,
     truth_m: f64,
     predicted_m: f64,
     sigma_m: f64,
@@ -38,12 +40,29 @@ fn run(cmd: &mut Command) -> String {
 /// Simulates `method` for `seed` with the independent simulator, solves it with the two-line
 /// machine file and predicts every validation line.
 fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 2]; 3], seed: u64) -> Vec<Target> {
+    validated(py, dir, method, topology, travel, seed).0
+}
+
+/// [`campaign`], and the names of the targets given no number (not determined).
+fn validated(
+    py: &Path,
+    dir: &Path,
+    method: &str,
+    topology: &str,
+    travel: [[f64; 2]; 3],
+    seed: u64,
+) -> (Vec<Target>, Vec<String>) {
     let root = volcal_tests::repo_root();
     let d = dir.join(format!("{method}-{seed}"));
     let travel_arg = travel.iter().map(|[lo, hi]| format!("{lo},{hi}")).collect::<Vec<_>>().join(";");
-    run(Command::new(py).arg(root.join("tests/py/independent_campaign.py")).args([
+    let mut sim = Command::new(py);
+    sim.arg(root.join("tests/py/independent_campaign.py"));
+    if method == "beams-sparse" {
+        sim.arg("--sparse");
+    }
+    run(sim.args([
         "--method",
-        method,
+        method.trim_end_matches("-sparse"),
         "--topology",
         topology,
         "--travel",
@@ -51,7 +70,11 @@ fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 
         "--seed",
         &seed.to_string(),
         "--points",
-        if method == "tracer" { "11" } else { "25" },
+        match method {
+            "tracer" => "11",
+            "beams-sparse" => "20",
+            _ => "25",
+        },
         "--out",
         d.to_str().unwrap(),
     ]));
@@ -75,7 +98,7 @@ fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 
         .arg("--out")
         .arg(&model));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("validation.json")).unwrap()).unwrap();
-    let mut out = Vec::new();
+    let (mut out, mut open) = (Vec::new(), Vec::new());
     for (k, line) in v["lines"].as_array().unwrap().iter().enumerate() {
         let triple = |key: &str| {
             line[key].as_array().unwrap().iter().map(|c| c.as_f64().unwrap().to_string()).collect::<Vec<_>>().join(",")
@@ -103,23 +126,36 @@ fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 
                 continue;
             }
             let f: Vec<&str> = row.split(',').collect();
-            let (Ok(p), Ok(u)) = (f[pc].parse::<f64>(), f[uc].parse::<f64>()) else { continue };
-            if !p.is_finite() || !u.is_finite() {
-                continue;
+            let name = format!("{} p=({})", line["name"].as_str().unwrap(), triple("probe"));
+            match (f[pc].parse::<f64>(), f[uc].parse::<f64>()) {
+                (Ok(p), Ok(u)) if p.is_finite() && u.is_finite() => {}
+                _ => {
+                    open.push(name);
+                    continue;
+                }
             }
-            out.push(Target {
-                line: format!("{} p=({})", line["name"].as_str().unwrap(), triple("probe")),
-                truth_m: truth[i],
-                predicted_m: p,
-                sigma_m: u,
-            });
+            let (p, u) = (f[pc].parse::<f64>().unwrap(), f[uc].parse::<f64>().unwrap());
+            out.push(Target { line: name, index: i, truth_m: truth[i], predicted_m: p, sigma_m: u });
         }
     }
-    out
+    (out, open)
 }
 
 /// The figures of one method over the seeds; asserts the bounds.
 fn check(method: &str, targets: &[Target], expected: usize) {
+    // Where the readings contradict the interpolation between a tracer's stops, the targets there
+    // are not determined and get no number; most must get one, or nothing is tested.
+    assert!(
+        2 * targets.len() >= expected,
+        "{method}: only {} of {expected} validation targets were given a number",
+        targets.len()
+    );
+    check_with(method, targets, expected, true)
+}
+
+/// [`check`] without the share of targets given a number; `calibrated`: whether the RMS of the
+/// deviations over their uncertainties is bound.
+fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: bool) {
     let z: Vec<f64> = targets.iter().map(|t| (t.predicted_m - t.truth_m) / t.sigma_m).collect();
     let max = z.iter().map(|v| v.abs()).fold(0.0, f64::max);
     let beyond_3 = z.iter().filter(|v| v.abs() > 3.0).count();
@@ -148,16 +184,9 @@ fn check(method: &str, targets: &[Target], expected: usize) {
             of.iter().map(|t| ((t.predicted_m - t.truth_m) / t.sigma_m).abs()).fold(0.0, f64::max)
         );
     }
-    // Where the readings contradict the interpolation between a tracer's stops, the targets there
-    // are not determined and get no number; most must get one, or nothing is tested.
-    assert!(
-        2 * targets.len() >= expected,
-        "{method}: only {} of {expected} validation targets were given a number",
-        targets.len()
-    );
     assert!(max <= 5.0, "{method}: a validation deviation {max:.2} standard uncertainties from the truth");
     assert!(beyond_3 as f64 <= 0.01 * z.len() as f64, "{method}: {beyond_3} of {} beyond 3 sigma", z.len());
-    assert!((0.7..=1.3).contains(&rms_z), "{method}: RMS of deviation / uncertainty {rms_z:.3}");
+    assert!(!calibrated || (0.7..=1.3).contains(&rms_z), "{method}: RMS of deviation / uncertainty {rms_z:.3}");
 }
 
 #[test]
@@ -179,4 +208,39 @@ fn a_laser_tracer_from_an_independent_simulator_is_predicted_within_its_uncertai
     let travel = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
     let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "tracer", "FYXZ", travel, s)).collect();
     check("laser tracer, FYXZ", &targets, SEEDS.count() * 9 * 10);
+}
+
+/// A plan that leaves something open: 12 beams (two axis lines per axis, the mid planes' face
+/// diagonals), 20 points, three probe offsets. Its readings do not separate the rolls of the
+/// three axes from the squareness EB0Z (a combination no beam of it sees); an axis line does not
+/// see it either, a body diagonal does, but for its far corner. `volcal validate` must give the
+/// diagonals between their ends no number (not a minimum-norm value with a small uncertainty),
+/// and whatever it gives a number must lie within its uncertainty. Not bound: the RMS of the deviations over their uncertainties, since
+/// the lines the roughness prior alone determines are over-stated here (README, "On data we did
+/// not simulate").
+#[test]
+fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = volcal_tests::scratch("independent-sparse");
+    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
+    let (mut targets, mut open) = (Vec::new(), Vec::new());
+    for s in SEEDS {
+        let (t, o) = validated(&py, &dir, "beams-sparse", "FXYZ", travel, s);
+        targets.extend(t);
+        open.extend(o);
+    }
+    open.sort();
+    open.dedup();
+    eprintln!("not determined: {open:?}");
+    // Between its ends: at the far corner the deviation from the start does not depend on the
+    // combination left open (it cancels there), and the number stands, as it should.
+    for diagonal in ["NPP", "NPN", "PPN", "PPP"] {
+        let given: Vec<usize> =
+            targets.iter().filter(|t| t.line.starts_with(diagonal) && t.index < 10).map(|t| t.index).collect();
+        assert!(
+            given.is_empty(),
+            "the body diagonal {diagonal} was given a number at targets {given:?} although the readings leave a combination it sees open"
+        );
+    }
+    check_with("fixed beams, sparse plan, FXYZ", &targets, SEEDS.count() * 27 * 10, false);
 }

@@ -20,7 +20,9 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   each read at `--points` positions for each of three probe offsets. A reading is the
   reflector's displacement along the beam from an arbitrary origin per beam:
   `l = n . (X + p + e(X, p) + d) + c + w`, `d` the machine's repeatability (a displacement
-  N(0, repeatability) per axis), `w` the interferometer's noise.
+  N(0, repeatability) per axis), `w` the interferometer's noise. With `--sparse`, 12 of the
+  lines (two axis lines per axis and the mid planes' face diagonals): a plan whose beams leave
+  the rolls of the three axes and the squareness EB0Z open in combination.
 - Laser tracer (`--method tracer`): 4 stations beside the corners of the volume, at four
   heights; the reflector at
   the tool (zero probe offset) visits the 12 edges of the working cuboid, `--points` stops per
@@ -109,9 +111,11 @@ def corners(travel):
     return [np.array([travel[0][i], travel[1][j], travel[2][k]]) for i in (0, 1) for j in (0, 1) for k in (0, 1)]
 
 
-def beam_lines(travel):
+def beam_lines(travel, sparse=False):
     """Axis-parallel lines on a 3 x 3 grid of each cross-section and the face diagonals of the
-    three mid planes and of the six faces (the body diagonals are left to the validation)."""
+    three mid planes and of the six faces (the body diagonals are left to the validation); with
+    `sparse`, 12 of them: two axis lines per axis (opposite edges of the grid) and the mid
+    planes' face diagonals."""
     lo = np.array([t[0] for t in travel])
     hi = np.array([t[1] for t in travel])
     span = hi - lo
@@ -120,6 +124,8 @@ def beam_lines(travel):
         others = [b for b in range(3) if b != a]
         for u in (0.15, 0.5, 0.85):
             for v in (0.15, 0.5, 0.85):
+                if sparse and not (u == v and u != 0.5):
+                    continue
                 start = lo.copy()
                 start[others[0]] += u * span[others[0]]
                 start[others[1]] += v * span[others[1]]
@@ -128,7 +134,7 @@ def beam_lines(travel):
                 lines.append((start, end))
     for a in range(3):
         b, c = [k for k in range(3) if k != a]
-        for level in (0.0, 0.5, 1.0):
+        for level in (0.5,) if sparse else (0.0, 0.5, 1.0):
             for flip in (False, True):
                 s = lo.copy()
                 s[a] = lo[a] + level * span[a]
@@ -171,6 +177,7 @@ def main():
     ap.add_argument("--travel", default="0,1;0,0.8;-0.6,0", help="lo,hi per axis in metres, X;Y;Z")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--points", type=int, default=25)
+    ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
@@ -181,7 +188,7 @@ def main():
         offsets = [np.array([0.0, 0.0, 0.0]), np.array([0.15, 0.0, -0.1]), np.array([0.0, 0.15, -0.1])]
         beam = 0
         for p in offsets:
-            for s, e in beam_lines(travel):
+            for s, e in beam_lines(travel, a.sparse):
                 n = (e - s) / np.linalg.norm(e - s)
                 x = s + np.outer(np.linspace(0.0, 1.0, a.points), e - s)
                 actual = x + p + machine.error(x, p) + rng.normal(0.0, REPEATABILITY_M, x.shape)
