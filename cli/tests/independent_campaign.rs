@@ -210,6 +210,17 @@ fn a_laser_tracer_from_an_independent_simulator_is_predicted_within_its_uncertai
     check("laser tracer, FYXZ", &targets, SEEDS.count() * 9 * 10);
 }
 
+#[test]
+fn beams_and_a_tracer_together_from_an_independent_simulator_are_predicted_within_their_uncertainty() {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = volcal_tests::scratch("independent-joint");
+    // The 45 beams at three probe offsets and the tracer's 4 tracks over the 12 edges (11 stops
+    // per edge, the reflector at the tool), one machine, one campaign.
+    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
+    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "joint", "FXYZ", travel, s)).collect();
+    check("beams and tracer, FXYZ", &targets, SEEDS.count() * 27 * 10);
+}
+
 /// A plan that leaves something open: 12 beams (two axis lines per axis, the mid planes' face
 /// diagonals), 20 points, three probe offsets. Its readings do not separate the rolls of the
 /// three axes from the squareness EB0Z (a combination no beam of it sees); an axis line does not

@@ -28,6 +28,8 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   the tool (zero probe offset) visits the 12 edges of the working cuboid, `--points` stops per
   edge, in one continuous track per station (one dead path per station):
   `l = |X + p + e(X, p) + d - S| + c + w`, with `w` of the tracer's noise model.
+- Both (`--method joint`): the 45 beams and the tracer's 4 tracks (`--stops` per edge) on one
+  machine, in one campaign.
 - Validation lines, none of them a beam of the campaign: three axis lines off the beams' grid,
   the four body diagonals (the paper's Table 4) and two face diagonals, 11 targets each, at the campaign's probe offsets: the
   positioning deviation an interferometer zeroed at the start reads,
@@ -172,11 +174,12 @@ def validation_lines(travel):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--method", choices=["beams", "tracer"], required=True)
+    ap.add_argument("--method", choices=["beams", "tracer", "joint"], required=True)
     ap.add_argument("--topology", default="FXYZ")
     ap.add_argument("--travel", default="0,1;0,0.8;-0.6,0", help="lo,hi per axis in metres, X;Y;Z")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--points", type=int, default=25)
+    ap.add_argument("--points", type=int, default=25, help="per beam, or stops per edge of the tracer")
+    ap.add_argument("--stops", type=int, default=11, help="stops per edge of the tracer in a joint campaign")
     ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
@@ -184,7 +187,8 @@ def main():
     machine = Machine(a.topology, travel, a.seed)
     rng = np.random.default_rng(a.seed + 7_000_000)
     rows = []
-    if a.method == "beams":
+    val_offsets = []
+    if a.method in ("beams", "joint"):
         offsets = [np.array([0.0, 0.0, 0.0]), np.array([0.15, 0.0, -0.1]), np.array([0.0, 0.15, -0.1])]
         beam = 0
         for p in offsets:
@@ -197,7 +201,8 @@ def main():
                     rows.append(("beam", 0, beam, li, xi, p))
                 beam += 1
         val_offsets = offsets
-    else:
+    if a.method in ("tracer", "joint"):
+        stops = a.points if a.method == "tracer" else a.stops
         lo = np.array([t[0] for t in travel])
         hi = np.array([t[1] for t in travel])
         span = hi - lo
@@ -211,7 +216,7 @@ def main():
         edges = [(i, j) for i in range(8) for j in range(i + 1, 8) if np.count_nonzero(cs[i] != cs[j]) == 1]
         track = []
         for i, j in edges:
-            for t in np.linspace(0.0, 1.0, a.points):
+            for t in np.linspace(0.0, 1.0, stops):
                 track.append(cs[i] + t * (cs[j] - cs[i]))
         x = np.array(track)
         for st, q in enumerate(stations):
@@ -221,7 +226,8 @@ def main():
             l = r + rng.uniform(0.1, 0.3) + rng.normal(0.0, 1.0, len(r)) * sigma
             for xi, li in zip(x, l):
                 rows.append(("range", st, 0, li, xi, p))
-        val_offsets = [p]
+        if not val_offsets:
+            val_offsets = [p]
     os.makedirs(a.out, exist_ok=True)
     with open(os.path.join(a.out, "campaign.csv"), "w") as fh:
         fh.write(f"# independent_campaign.py --method {a.method} --topology {a.topology} --seed {a.seed}\n")
