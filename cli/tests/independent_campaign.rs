@@ -189,36 +189,37 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
     assert!(!calibrated || (0.7..=1.3).contains(&rms_z), "{method}: RMS of deviation / uncertainty {rms_z:.3}");
 }
 
+/// The demo CMM's travel (FXYZ beams and joint campaigns) and the paper's (its tracer case).
+const DEMO_TRAVEL: [[f64; 2]; 3] = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
+const PAPER_TRAVEL: [[f64; 2]; 3] = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
+
+/// `method`'s campaigns over [`SEEDS`], every validation line (`lines` per seed, 10 targets each
+/// beyond the start) predicted within its uncertainty ([`check`]).
+fn predicted_within_uncertainty(label: &str, method: &str, topology: &str, travel: [[f64; 2]; 3], lines: usize) {
+    let Some(py) = volcal_tests::checker_python() else { return };
+    let dir = volcal_tests::scratch(&format!("independent-{method}"));
+    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, method, topology, travel, s)).collect();
+    check(label, &targets, SEEDS.count() * lines * 10);
+}
+
 #[test]
 fn fixed_beams_from_an_independent_simulator_are_predicted_within_their_uncertainty() {
-    let Some(py) = volcal_tests::checker_python() else { return };
-    let dir = volcal_tests::scratch("independent-beams");
-    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
-    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "beams", "FXYZ", travel, s)).collect();
-    // 9 lines at each of the 3 probe offsets, 10 targets each beyond the start.
-    check("fixed beams, FXYZ", &targets, SEEDS.count() * 27 * 10);
+    // 9 lines at each of the 3 probe offsets.
+    predicted_within_uncertainty("fixed beams, FXYZ", "beams", "FXYZ", DEMO_TRAVEL, 27);
 }
 
 #[test]
 fn a_laser_tracer_from_an_independent_simulator_is_predicted_within_its_uncertainty() {
-    let Some(py) = volcal_tests::checker_python() else { return };
-    let dir = volcal_tests::scratch("independent-tracer");
     // The issue's case: the paper's travel and axis stacking, 4 stations, the 12 edges, 11 stops
-    // per edge, one continuous track per station (528 ranges).
-    let travel = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
-    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "tracer", "FYXZ", travel, s)).collect();
-    check("laser tracer, FYXZ", &targets, SEEDS.count() * 9 * 10);
+    // per edge, one continuous track per station (528 ranges), the reflector at the tool.
+    predicted_within_uncertainty("laser tracer, FYXZ", "tracer", "FYXZ", PAPER_TRAVEL, 9);
 }
 
 #[test]
 fn beams_and_a_tracer_together_from_an_independent_simulator_are_predicted_within_their_uncertainty() {
-    let Some(py) = volcal_tests::checker_python() else { return };
-    let dir = volcal_tests::scratch("independent-joint");
     // The 45 beams at three probe offsets and the tracer's 4 tracks over the 12 edges (11 stops
-    // per edge, the reflector at the tool), one machine, one campaign.
-    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
-    let targets: Vec<Target> = SEEDS.flat_map(|s| campaign(&py, &dir, "joint", "FXYZ", travel, s)).collect();
-    check("beams and tracer, FXYZ", &targets, SEEDS.count() * 27 * 10);
+    // per edge), one machine, one campaign.
+    predicted_within_uncertainty("beams and tracer, FXYZ", "joint", "FXYZ", DEMO_TRAVEL, 27);
 }
 
 /// A plan that leaves something open: 12 beams (two axis lines per axis, the mid planes' face
@@ -226,17 +227,16 @@ fn beams_and_a_tracer_together_from_an_independent_simulator_are_predicted_withi
 /// three axes from the squareness EB0Z (a combination no beam of it sees); an axis line does not
 /// see it either, a body diagonal does, but for its far corner. `volcal validate` must give the
 /// diagonals between their ends no number (not a minimum-norm value with a small uncertainty),
-/// and whatever it gives a number must lie within its uncertainty. Not bound: the RMS of the deviations over their uncertainties, since
-/// the lines the roughness prior alone determines are over-stated here (README, "On data we did
-/// not simulate").
+/// and whatever it gives a number must lie within its uncertainty. Not bound: the RMS of the
+/// deviations over their uncertainties, since the lines the roughness prior alone determines are
+/// over-stated here (README, "On data we did not simulate").
 #[test]
 fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
     let Some(py) = volcal_tests::checker_python() else { return };
     let dir = volcal_tests::scratch("independent-sparse");
-    let travel = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
     let (mut targets, mut open) = (Vec::new(), Vec::new());
     for s in SEEDS {
-        let (t, o) = validated(&py, &dir, "beams-sparse", "FXYZ", travel, s);
+        let (t, o) = validated(&py, &dir, "beams-sparse", "FXYZ", DEMO_TRAVEL, s);
         targets.extend(t);
         open.extend(o);
     }
