@@ -35,11 +35,20 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   positioning deviation an interferometer zeroed at the start reads,
   `n . (e(X_s, p) - e(A, p))`, from the true errors (noise-free).
 
+- The oracle (`--oracle`): the estimator that knows the truth's own basis and prior (each
+  function's random Fourier features and the Gaussian prior on their weights), the readings'
+  noise and nothing else. Its prediction of each validation line is the posterior mean given
+  the readings (the Bayes estimator under the prior the truth was drawn from), with a flat prior
+  on the beams' origins and the stations' dead paths, and its uncertainty the posterior's. No
+  estimator does better on this family and these readings on average, so volcal's error over
+  the oracle's says how near the information limit it comes.
+
 Usage:
     independent_campaign.py --method beams|tracer --topology FXYZ --travel "0,1;0,0.8;-0.6,0" \
-        --seed N --points 25 --out DIR
+        --seed N --points 25 [--oracle] --out DIR
 
-writes DIR/campaign.csv (volcal's campaign CSV) and DIR/validation.json. Noise as volcal's
+writes DIR/campaign.csv (volcal's campaign CSV) and DIR/validation.json (with `--oracle`, each
+line also has `oracle_m` and `oracle_sd_m`). Noise as volcal's
 defaults (interferometer 0.05 um, repeatability 0.2 um, tracer 0.1 um + 0.2 ppm), so that the
 two-line machine file states it. Needs NumPy.
 """
@@ -55,6 +64,8 @@ INTERFEROMETER_M = 0.05e-6
 REPEATABILITY_M = 0.2e-6
 TRACER_M = 0.1e-6
 TRACER_PPM = 0.2
+SQUARENESS = ("EC0Y", "EB0Z", "EA0Z")
+SQUARENESS_SD = 12.5e-6
 
 
 def smooth_draw(rng, lo, hi, amplitude):
@@ -68,11 +79,23 @@ def smooth_draw(rng, lo, hi, amplitude):
     raw = (weight[None, :] * np.cos(np.outer(grid - lo, omega) + phase[None, :])).sum(axis=1)
     scale = amplitude / max(np.max(np.abs(raw - raw.mean())), 1e-30)
 
-    def f(q):
-        q = np.asarray(q, dtype=float)
-        return scale * (weight * np.cos(np.multiply.outer(q - lo, omega) + phase)).sum(axis=-1)
+    return Draw(lo, omega, phase, weight, scale)
 
-    return f
+
+class Draw:
+    """One function of the machine, `scale * sum_j w_j cos(omega_j (q - lo) + phase_j)`: its
+    own basis (the features) and its weights."""
+
+    def __init__(self, lo, omega, phase, weight, scale):
+        self.lo, self.omega, self.phase, self.weight, self.scale = lo, omega, phase, weight, scale
+
+    def features(self, q):
+        """The basis at `q` (n x m), so that f(q) = features(q) @ weight."""
+        q = np.asarray(q, dtype=float)
+        return self.scale * np.cos(np.multiply.outer(q - self.lo, self.omega) + self.phase)
+
+    def __call__(self, q):
+        return self.features(q) @ self.weight
 
 
 class Machine:
@@ -89,7 +112,7 @@ class Machine:
                 else:
                     amp = 8e-6
                 self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amp)
-        self.sq = {s: float(np.clip(rng.normal(0.0, 12.5e-6), -25e-6, 25e-6)) for s in ("EC0Y", "EB0Z", "EA0Z")}
+        self.sq = {s: float(np.clip(rng.normal(0.0, SQUARENESS_SD), -25e-6, 25e-6)) for s in SQUARENESS}
 
     def error(self, x, p):
         """e(X, p) for arrays x, p of shape (n, 3)."""
@@ -107,6 +130,50 @@ class Machine:
         e[:, 0] += -x[:, 1] * self.sq["EC0Y"] + x[:, 2] * self.sq["EB0Z"]
         e[:, 1] += -x[:, 2] * self.sq["EA0Z"]
         return e
+
+
+    def sensitivities(self, x, p, n):
+        """How `n . e(X, p)` depends on each function's value at the readings' positions and on
+        each squareness: `({function: (axis, multiplier)}, {squareness: multiplier})`, for
+        arrays x, p, n of shape (n, 3). It is `error` written as a linear map."""
+        x = np.atleast_2d(x)
+        p = np.broadcast_to(np.atleast_2d(p), x.shape)
+        out = {}
+        for k, a in enumerate(self.chain):
+            h = np.array(p, dtype=float)
+            for b in self.chain[k + 1:]:
+                h[:, AXES.index(b)] += x[:, AXES.index(b)]
+            lever = np.cross(h, n)  # n . (r x h) = r . (h x n)
+            for i, c in enumerate(AXES):
+                out[f"E{c}{a}"] = (AXES.index(a), n[:, i])
+            for i, c in enumerate("ABC"):
+                out[f"E{c}{a}"] = (AXES.index(a), lever[:, i])
+        sq = {"EC0Y": -n[:, 0] * x[:, 1], "EB0Z": n[:, 0] * x[:, 2], "EA0Z": -n[:, 1] * x[:, 2]}
+        return out, sq
+
+    def covariance(self, a, b):
+        """The prior covariance of `n . e(X, p)` between two sets of readings `a` and `b`
+        (each a tuple x, p, n of arrays (n, 3)), under the prior the truth was drawn from: each
+        function's weights N(0, 1) on its own features, the squareness errors N(0, 12.5 urad)."""
+        (fa, sa), (fb, sb) = self.sensitivities(*a), self.sensitivities(*b)
+        ca = [sa[s][:, None] * SQUARENESS_SD for s in SQUARENESS]
+        cb = [sb[s][:, None] * SQUARENESS_SD for s in SQUARENESS]
+        for name, (axis, ga) in fa.items():
+            # The features at the distinct positions, reduced to their column space (exact: the
+            # same kernel, fewer columns where there are fewer positions than features).
+            q, inverse = np.unique(np.concatenate([a[0][:, axis], b[0][:, axis]]), return_inverse=True)
+            u, s, _ = np.linalg.svd(self.f[name].features(q), full_matrices=False)
+            factor = u * s
+            ca.append(ga[:, None] * factor[inverse[: len(ga)]])
+            cb.append(fb[name][1][:, None] * factor[inverse[len(ga) :]])
+        return np.hstack(ca) @ np.hstack(cb).T
+
+    def projected(self, x, p, n):
+        """`n . e(X, p)` from the sensitivities, to check them against `error`."""
+        funcs, sq = self.sensitivities(x, p, n)
+        return sum(g * self.f[name](x[:, axis]) for name, (axis, g) in funcs.items()) + sum(
+            sq[s] * self.sq[s] for s in SQUARENESS
+        )
 
 
 def corners(travel):
@@ -172,6 +239,50 @@ def validation_lines(travel):
     return out
 
 
+def oracle(machine, seen, targets):
+    """The oracle: the estimator that knows the truth's own basis and prior (each function's
+    features, its weights N(0, 1), the squareness errors N(0, 12.5 urad)), the readings' noise
+    and nothing else, i.e. not the weights. It is the Bayes estimator of the validation lines
+    under the prior the truth was drawn from: the posterior mean given the readings, with a
+    flat prior on each beam's origin and each station's dead path (universal kriging, in the
+    space of the readings). Returns, per validation line, the predicted deviation and its
+    standard uncertainty, in metres."""
+    um = 1e6
+    stack = lambda i: np.vstack([np.broadcast_to(s[i], s[0].shape) for s in seen])
+    readings = (stack(0), stack(1), stack(2))
+    y = np.concatenate([s[3] for s in seen]) * um
+    group = np.concatenate([s[4] for s in seen])
+    var = np.concatenate([np.broadcast_to(s[5], s[4].shape) for s in seen]) * um**2
+    # The sensitivities are the machine's error written as a linear map: check them.
+    e = np.einsum("ij,ij->i", readings[2], machine.error(readings[0], readings[1]))
+    assert np.allclose(machine.projected(*readings), e, rtol=0, atol=1e-15)
+    # A validation target is the difference of `n . e` between a point and its line's start.
+    full = [[np.broadcast_to(t[i], t[0].shape) for i in range(3)] for t in targets]
+    ends = [np.vstack([t[i] for t in full]) for i in range(3)]
+    starts = [np.vstack([np.broadcast_to(t[i][:1], t[0].shape) for t in full]) for i in range(3)]
+    both = tuple(np.vstack([u, v]) for u, v in zip(ends, starts))
+    m = len(ends[0])
+    diff = np.hstack([np.eye(m), -np.eye(m)])
+    c = machine.covariance(readings, readings) * um**2 + np.diag(var)
+    k = machine.covariance(readings, both) @ diff.T * um**2
+    kzz = np.diag(diff @ machine.covariance(both, both) @ diff.T) * um**2
+    ids = np.unique(group)
+    nuisance = (group[:, None] == ids[None, :]).astype(float)
+    solved = np.linalg.solve(c, np.hstack([y[:, None], nuisance, k]))
+    ciy, cin, cik = solved[:, :1], solved[:, 1 : 1 + len(ids)], solved[:, 1 + len(ids) :]
+    mnn = nuisance.T @ cin
+    beta = np.linalg.solve(mnn, nuisance.T @ ciy)
+    mean = (cik.T @ (y[:, None] - nuisance @ beta))[:, 0]
+    r = nuisance.T @ cik
+    variance = kzz - np.sum(k * cik, axis=0) + np.sum(r * np.linalg.solve(mnn, r), axis=0)
+    sdev = np.sqrt(np.maximum(variance, 0.0))
+    out, at = [], 0
+    for tx, _, _ in targets:
+        out.append((mean[at : at + len(tx)] / um, sdev[at : at + len(tx)] / um))
+        at += len(tx)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--method", choices=["beams", "tracer", "joint"], required=True)
@@ -181,12 +292,16 @@ def main():
     ap.add_argument("--points", type=int, default=25, help="per beam, or stops per edge of the tracer")
     ap.add_argument("--stops", type=int, default=11, help="stops per edge of the tracer in a joint campaign")
     ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
+    ap.add_argument("--oracle", action="store_true", help="also the oracle's prediction of each validation line")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
     machine = Machine(a.topology, travel, a.seed)
     rng = np.random.default_rng(a.seed + 7_000_000)
     rows = []
+    # What the oracle sees of each block of readings: positions, probe, the direction the
+    # reading measures e along, the reading less its nominal value, its origin's group, variance.
+    seen = []
     val_offsets = []
     if a.method in ("beams", "joint"):
         offsets = [np.array([0.0, 0.0, 0.0]), np.array([0.15, 0.0, -0.1]), np.array([0.0, 0.15, -0.1])]
@@ -199,6 +314,7 @@ def main():
                 l = actual @ n + rng.uniform(-0.5, 0.5) + rng.normal(0.0, INTERFEROMETER_M, len(x))
                 for xi, li in zip(x, l):
                     rows.append(("beam", 0, beam, li, xi, p))
+                seen.append((x, p, np.tile(n, (len(x), 1)), l - (x + p) @ n, np.full(len(x), beam), np.full(len(x), REPEATABILITY_M**2 + INTERFEROMETER_M**2)))
                 beam += 1
         val_offsets = offsets
     if a.method in ("tracer", "joint"):
@@ -226,6 +342,9 @@ def main():
             l = r + rng.uniform(0.1, 0.3) + rng.normal(0.0, 1.0, len(r)) * sigma
             for xi, li in zip(x, l):
                 rows.append(("range", st, 0, li, xi, p))
+            nominal = np.linalg.norm(x + p - q, axis=1)
+            # To first order in the errors (|e|^2 / r is below 1e-10 m here).
+            seen.append((x, p, (x + p - q) / nominal[:, None], l - nominal, np.full(len(x), 1000 + st), REPEATABILITY_M**2 + sigma**2))
         if not val_offsets:
             val_offsets = [p]
     os.makedirs(a.out, exist_ok=True)
@@ -234,7 +353,7 @@ def main():
         fh.write("kind,station,beam,t_s,l_m,x_m,y_m,z_m,px_m,py_m,pz_m\n")
         for i, (kind, st, b, l, x, p) in enumerate(rows):
             fh.write(f"{kind},{st},{b},{i * 0.5:.1f},{l:.12f},{x[0]:.9f},{x[1]:.9f},{x[2]:.9f},{p[0]:.6f},{p[1]:.6f},{p[2]:.6f}\n")
-    lines = []
+    lines, targets = [], []
     for p in val_offsets:
         for name, s, e in validation_lines(travel):
             n = (e - s) / np.linalg.norm(e - s)
@@ -242,6 +361,10 @@ def main():
             err = machine.error(x, p)
             dev = (err - err[0]) @ n
             lines.append({"name": name, "start": s.tolist(), "end": e.tolist(), "probe": p.tolist(), "deviation_m": dev.tolist()})
+            targets.append((x, p, np.tile(n, (len(x), 1))))
+    if a.oracle:
+        for line, (mean, sd) in zip(lines, oracle(machine, seen, targets)):
+            line["oracle_m"], line["oracle_sd_m"] = mean.tolist(), sd.tolist()
     with open(os.path.join(a.out, "validation.json"), "w") as fh:
         json.dump({"method": a.method, "topology": a.topology, "travel": travel, "seed": a.seed, "lines": lines}, fh, indent=1)
 
