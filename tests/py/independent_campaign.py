@@ -131,7 +131,6 @@ class Machine:
         e[:, 1] += -x[:, 2] * self.sq["EA0Z"]
         return e
 
-
     def sensitivities(self, x, p, n):
         """How `n . e(X, p)` depends on each function's value at the readings' positions and on
         each squareness: `({function: (axis, multiplier)}, {squareness: multiplier})`, for
