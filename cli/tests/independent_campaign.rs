@@ -186,6 +186,11 @@ fn check(method: &str, targets: &[Target], expected: usize) {
     check_with(method, targets, expected, true)
 }
 
+/// RMS of `f` over `of`.
+fn rms_over(of: &[&Target], f: &dyn Fn(&Target) -> f64) -> f64 {
+    (of.iter().map(|t| f(t).powi(2)).sum::<f64>() / of.len() as f64).sqrt()
+}
+
 /// [`check`] without the share of targets given a number; `calibrated`: whether the RMS of the
 /// deviations over their uncertainties is bound.
 fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: bool) {
@@ -193,8 +198,9 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
     let max = z.iter().map(|v| v.abs()).fold(0.0, f64::max);
     let beyond_3 = z.iter().filter(|v| v.abs() > 3.0).count();
     let rms_z = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
-    let actual = (targets.iter().map(|t| (t.predicted_m - t.truth_m).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
-    let predicted = (targets.iter().map(|t| t.sigma_m.powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+    let all: Vec<&Target> = targets.iter().collect();
+    let actual = rms_over(&all, &|t| t.predicted_m - t.truth_m);
+    let predicted = rms_over(&all, &|t| t.sigma_m);
     eprintln!(
         "{method}: {} validation targets over {} seeds (of {expected} asked; the rest not determined): max |z| {max:.2}, |z| > 3 in {beyond_3}, RMS z {rms_z:.3}; actual / predicted RMS {:.3} ({:.3} um against {:.3} um)",
         targets.len(),
@@ -206,10 +212,6 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
     // Against the oracle (the least error any estimator can have on this family and these
     // readings, on average), at the same targets; its own uncertainty must be calibrated, or it
     // is no yardstick.
-    let rms_over = |of: &[&Target], f: &dyn Fn(&Target) -> f64| {
-        (of.iter().map(|t| f(t).powi(2)).sum::<f64>() / of.len() as f64).sqrt()
-    };
-    let all: Vec<&Target> = targets.iter().collect();
     let oracle = rms_over(&all, &|t| t.oracle_m - t.truth_m);
     let oracle_rms_z = rms_over(&all, &|t| (t.oracle_m - t.truth_m) / t.oracle_sigma_m);
     // The face diagonals apart: along them fixed beams cannot separate the straightness of one
@@ -230,7 +232,7 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
     lines.dedup();
     for l in &lines {
         let of: Vec<&Target> = targets.iter().filter(|t| &t.line == l).collect();
-        let rms = |f: &dyn Fn(&Target) -> f64| (of.iter().map(|t| f(t).powi(2)).sum::<f64>() / of.len() as f64).sqrt();
+        let rms = |f: &dyn Fn(&Target) -> f64| rms_over(&of, f);
         eprintln!(
             "  {l}: error RMS {:.3} um (the oracle's {:.3} um), standard uncertainty RMS {:.3} um, max |z| {:.2}",
             rms(&|t| t.predicted_m - t.truth_m) * 1e6,
