@@ -322,4 +322,54 @@ fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
         );
     }
     check_with("fixed beams, sparse plan, FXYZ", &targets, seeds().count() * 27 * 10, false);
+    map_and_tables_say_what_is_open(&dir.join(format!("beams-sparse-{}", seeds().start)));
+}
+
+/// The rest of what a user gets from a model whose readings leave directions open (issue 12):
+/// `volcal map` writes no value where the error depends on them and says what to measure, and
+/// `volcal export` refuses tables it would need them for, naming them, instead of writing the
+/// minimum-norm values to a controller.
+fn map_and_tables_say_what_is_open(d: &Path) {
+    let exe = env!("CARGO_BIN_EXE_volcal");
+    let out = Command::new(exe)
+        .current_dir(d)
+        .args(["map", "model.json", "--step", "0.1", "--out", "map.csv"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains("the data do not determine the error at") && said.contains("measure"), "{said}");
+    let map = std::fs::read_to_string(d.join("map.csv")).unwrap();
+    let head: Vec<&str> = map.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (e, u, det) = (col("e_norm_m"), col("u95_m"), col("determined"));
+    let (mut open, mut given) = (0, 0);
+    for row in map.lines().skip(1) {
+        let f: Vec<&str> = row.split(',').collect();
+        match f[det] {
+            "0" => {
+                assert!(f[e].is_empty() && f[u].is_empty(), "a value where the data determine none: {row}");
+                open += 1;
+            }
+            _ => {
+                let (v, w) = (f[e].parse::<f64>().unwrap(), f[u].parse::<f64>().unwrap());
+                assert!(v.is_finite() && w.is_finite() && w > 0.0, "{row}");
+                given += 1;
+            }
+        }
+    }
+    eprintln!("sparse plan, map: {given} grid points given a value, {open} not determined");
+    assert!(open > 0, "every grid point given a value, although the readings leave directions open");
+    let out = Command::new(exe)
+        .current_dir(d)
+        .args(["export", "model.json", "--format", "linuxcnc", "--out", "comp"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "tables exported from a model that leaves them open");
+    assert!(
+        said.contains("the data do not determine") && said.contains("undetermined") && said.contains("measure"),
+        "{said}"
+    );
+    assert!(!d.join("comp/x.comp").exists(), "a table written although the export was refused");
 }
