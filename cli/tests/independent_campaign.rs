@@ -61,8 +61,16 @@ fn run(cmd: &mut Command) -> String {
 
 /// Simulates `method` for `seed` with the independent simulator, solves it with the two-line
 /// machine file and predicts every validation line.
-fn campaign(py: &Path, dir: &Path, method: &str, topology: &str, travel: [[f64; 2]; 3], seed: u64) -> Vec<Target> {
-    validated(py, dir, method, topology, travel, seed).0
+fn campaign(
+    py: &Path,
+    dir: &Path,
+    method: &str,
+    topology: &str,
+    travel: [[f64; 2]; 3],
+    seed: u64,
+) -> (Vec<Target>, MapError) {
+    let (targets, _, map) = validated(py, dir, method, topology, travel, seed);
+    (targets, map)
 }
 
 /// [`campaign`], and the names of the targets given no number (not determined).
@@ -73,7 +81,7 @@ fn validated(
     topology: &str,
     travel: [[f64; 2]; 3],
     seed: u64,
-) -> (Vec<Target>, Vec<String>) {
+) -> (Vec<Target>, Vec<String>, MapError) {
     let root = volcal_tests::repo_root();
     let d = dir.join(format!("{method}-{seed}"));
     let travel_arg = travel.iter().map(|[lo, hi]| format!("{lo},{hi}")).collect::<Vec<_>>().join(";");
@@ -98,6 +106,8 @@ fn validated(
             _ => "25",
         },
         "--oracle",
+        "--map-step",
+        MAP_STEP,
         "--out",
         d.to_str().unwrap(),
     ]));
@@ -121,6 +131,16 @@ fn validated(
         .arg("--out")
         .arg(&model));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("validation.json")).unwrap()).unwrap();
+    let mut probes: Vec<String> = v["lines"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| {
+            l["probe"].as_array().unwrap().iter().map(|c| c.as_f64().unwrap().to_string()).collect::<Vec<_>>().join(",")
+        })
+        .collect();
+    probes.dedup();
+    let map = map_error(&d, &probes);
     let (mut out, mut open) = (Vec::new(), Vec::new());
     for (k, line) in v["lines"].as_array().unwrap().iter().enumerate() {
         let triple = |key: &str| {
@@ -171,7 +191,99 @@ fn validated(
             });
         }
     }
-    (out, open)
+    (out, open, map)
+}
+
+/// Spacing of the map grid on which volcal's map and the oracle's are compared with the truth.
+const MAP_STEP: &str = "0.2";
+
+/// The volumetric map's error, the measure of issue 12 ("RMS over the volume, after removing the
+/// gauge's rigid-body freedom"), of volcal and of the oracle on one campaign: their squared
+/// residuals from the truth once each difference map's best motion within the gauge (least
+/// squares: a rigid motion of the machine and a rotation of the tool's offset) is removed, over
+/// the grid points where volcal gives a value.
+#[derive(Clone, Copy, Default)]
+struct MapError {
+    volcal_ss: f64,
+    oracle_ss: f64,
+    values: usize,
+}
+
+impl MapError {
+    fn add(self, o: MapError) -> MapError {
+        MapError {
+            volcal_ss: self.volcal_ss + o.volcal_ss,
+            oracle_ss: self.oracle_ss + o.oracle_ss,
+            values: self.values + o.values,
+        }
+    }
+
+    /// RMS of volcal's and of the oracle's residual maps, um.
+    fn rms_um(&self) -> (f64, f64) {
+        let n = self.values.max(1) as f64;
+        ((self.volcal_ss / n).sqrt() * 1e6, (self.oracle_ss / n).sqrt() * 1e6)
+    }
+}
+
+/// [`MapError`] of the campaign in `d`: `volcal map` at each of its probe offsets, against the
+/// simulator's truth and its oracle's map on the same grid (`map.csv`, `--map-step`).
+fn map_error(d: &Path, probes: &[String]) -> MapError {
+    use nalgebra::{DMatrix, DVector, Vector3};
+    let key = |v: &[f64]| -> Vec<i64> { v.iter().map(|c| (c * 1e7).round() as i64).collect() };
+    let numbers = |row: &str| -> Vec<f64> { row.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect() };
+    let reference: std::collections::HashMap<Vec<i64>, Vec<f64>> = std::fs::read_to_string(d.join("map.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|row| {
+            let v = numbers(row);
+            (key(&v[..6]), v[6..12].to_vec())
+        })
+        .collect();
+    let (mut at, mut volcal, mut oracle) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, probe) in probes.iter().enumerate() {
+        let out = d.join(format!("map{k}.csv"));
+        let args = ["map", "model.json", "--step", MAP_STEP, "--probe", probe, "--out", out.to_str().unwrap()];
+        run(Command::new(env!("CARGO_BIN_EXE_volcal")).current_dir(d).args(args));
+        let text = std::fs::read_to_string(&out).unwrap();
+        let head: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let (e, det) = (col("ex_m"), col("determined"));
+        for row in text.lines().skip(1) {
+            let v = numbers(row);
+            if v[det] != 1.0 {
+                continue;
+            }
+            let r = reference.get(&key(&v[..6])).expect("volcal's grid point in the simulator's map");
+            let truth = Vector3::new(r[0], r[1], r[2]);
+            at.push([Vector3::new(v[0], v[1], v[2]), Vector3::new(v[3], v[4], v[5])]);
+            volcal.push(Vector3::new(v[e], v[e + 1], v[e + 2]) - truth);
+            oracle.push(Vector3::new(r[3], r[4], r[5]) - truth);
+        }
+    }
+    let n = at.len();
+    if n < 3 {
+        return MapError::default();
+    }
+    // e ~ t + w x X + r x p: the gauge's design matrix, three rows per point. A rigid motion of
+    // the machine (t, w) and a rotation of the tool's offset (r: the angular errors' constants,
+    // which neither a beam, whose origin is free, nor a range, whose station is, can see).
+    let skew = |x: Vector3<f64>, r: usize, c: usize| [[0.0, x.z, -x.y], [-x.z, 0.0, x.x], [x.y, -x.x, 0.0]][r][c];
+    let a = DMatrix::from_fn(3 * n, 9, |r, c| {
+        let [x, p] = at[r / 3];
+        match c {
+            0..3 => f64::from(u8::from(c == r % 3)),
+            3..6 => skew(x + p, r % 3, c - 3),
+            _ => skew(p, r % 3, c - 6),
+        }
+    });
+    let svd = a.clone().svd(true, true);
+    let residual_ss = |diff: &[Vector3<f64>]| -> f64 {
+        let b = DVector::from_iterator(3 * n, diff.iter().flat_map(|v| [v.x, v.y, v.z]));
+        let fit = svd.solve(&b, 1e-12).unwrap();
+        (&b - &a * fit).norm_squared()
+    };
+    MapError { volcal_ss: residual_ss(&volcal), oracle_ss: residual_ss(&oracle), values: 3 * n }
 }
 
 /// The figures of one method over the seeds; asserts the bounds.
@@ -259,8 +371,25 @@ const PAPER_TRAVEL: [[f64; 2]; 3] = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
 fn predicted_within_uncertainty(label: &str, method: &str, topology: &str, travel: [[f64; 2]; 3], lines: usize) {
     let Some(py) = volcal_tests::checker_python() else { return };
     let dir = volcal_tests::scratch(&format!("independent-{method}-{topology}"));
-    let targets: Vec<Target> = seeds().flat_map(|s| campaign(&py, &dir, method, topology, travel, s)).collect();
+    let (mut targets, mut map) = (Vec::new(), MapError::default());
+    for s in seeds() {
+        let (t, m) = campaign(&py, &dir, method, topology, travel, s);
+        targets.extend(t);
+        map = map.add(m);
+    }
+    print_map_error(label, &map);
     check(label, &targets, seeds().count() * lines * 10);
+}
+
+/// The map's error against the oracle's, pooled over the seeds (measured, not bound).
+fn print_map_error(label: &str, map: &MapError) {
+    let (volcal, oracle) = map.rms_um();
+    eprintln!(
+        "{label}: map error (gauge aligned) RMS {volcal:.3} um against the oracle's {oracle:.3} um: {:.2} times ({} values over {} seeds, {MAP_STEP} m grid)",
+        volcal / oracle,
+        map.values,
+        seeds().count()
+    );
 }
 
 #[test]
@@ -302,12 +431,14 @@ fn beams_and_a_tracer_together_from_an_independent_simulator_are_predicted_withi
 fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
     let Some(py) = volcal_tests::checker_python() else { return };
     let dir = volcal_tests::scratch("independent-sparse");
-    let (mut targets, mut open) = (Vec::new(), Vec::new());
+    let (mut targets, mut open, mut map) = (Vec::new(), Vec::new(), MapError::default());
     for s in seeds() {
-        let (t, o) = validated(&py, &dir, "beams-sparse", "FXYZ", DEMO_TRAVEL, s);
+        let (t, o, m) = validated(&py, &dir, "beams-sparse", "FXYZ", DEMO_TRAVEL, s);
         targets.extend(t);
         open.extend(o);
+        map = map.add(m);
     }
+    print_map_error("fixed beams, sparse plan, FXYZ, where the map is determined", &map);
     open.sort();
     open.dedup();
     eprintln!("not determined: {open:?}");

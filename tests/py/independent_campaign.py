@@ -54,6 +54,7 @@ two-line machine file states it. Needs NumPy.
 """
 
 import argparse
+import copy
 import json
 import os
 
@@ -245,7 +246,8 @@ def oracle(machine, seen, targets):
     under the prior the truth was drawn from: the posterior mean given the readings, with a
     flat prior on each beam's origin and each station's dead path (universal kriging, in the
     space of the readings). Returns, per validation line, the predicted deviation and its
-    standard uncertainty, in metres."""
+    standard uncertainty, in metres, and the posterior mean of the machine (whose `error` is
+    the oracle's map)."""
     um = 1e6
     stack = lambda i: np.vstack([np.broadcast_to(s[i], s[0].shape) for s in seen])
     readings = (stack(0), stack(1), stack(2))
@@ -279,7 +281,33 @@ def oracle(machine, seen, targets):
     for tx, _, _ in targets:
         out.append((mean[at : at + len(tx)] / um, sdev[at : at + len(tx)] / um))
         at += len(tx)
-    return out
+    # The posterior mean of the machine itself: each function's weights and each squareness,
+    # E[w] = Phi' G alpha with alpha = C^-1 (y - N beta) (the prior's covariance of the weights
+    # is the identity), a machine whose `error` is the oracle's map. Its validation lines must
+    # be the oracle's.
+    # (Solved again rather than from C^-1 y - C^-1 N beta: the readings carry their origins,
+    # up to half a metre, and that difference would cancel to nanometres.)
+    alpha = np.linalg.solve(c, y[:, None] - nuisance @ beta)[:, 0] * um
+    funcs, sq = machine.sensitivities(*readings)
+    posterior = copy.deepcopy(machine)
+    for name, (axis, g) in funcs.items():
+        posterior.f[name].weight = machine.f[name].features(readings[0][:, axis]).T @ (g * alpha)
+    for name in SQUARENESS:
+        posterior.sq[name] = SQUARENESS_SD**2 * float(sq[name] @ alpha)
+    through = posterior.projected(*ends) - posterior.projected(*starts)
+    assert np.allclose(through, mean / um, rtol=0, atol=1e-12), np.max(np.abs(through - mean / um))
+    return out, posterior
+
+
+def grid(travel, step):
+    """The grid of `volcal map --step` (volcal's `predict::grid`): per axis the travel in
+    `span / step` equal intervals (rounded), ends included; X fastest, then Y, then Z."""
+    axes = []
+    for lo, hi in travel:
+        # Rust's `round` (half away from zero), not Python's (half to even).
+        n = max(int(np.floor((hi - lo) / step + 0.5)), 1)
+        axes.append([lo + (hi - lo) * i / n for i in range(n + 1)])
+    return np.array([(x, y, z) for z in axes[2] for y in axes[1] for x in axes[0]])
 
 
 def main():
@@ -292,6 +320,7 @@ def main():
     ap.add_argument("--stops", type=int, default=11, help="stops per edge of the tracer in a joint campaign")
     ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
     ap.add_argument("--oracle", action="store_true", help="also the oracle's prediction of each validation line")
+    ap.add_argument("--map-step", type=float, help="with --oracle: the truth's and the oracle's map on volcal's grid of this step (map.csv)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
@@ -362,8 +391,17 @@ def main():
             lines.append({"name": name, "start": s.tolist(), "end": e.tolist(), "probe": p.tolist(), "deviation_m": dev.tolist()})
             targets.append((x, p, np.tile(n, (len(x), 1))))
     if a.oracle:
-        for line, (mean, sd) in zip(lines, oracle(machine, seen, targets)):
+        predicted, posterior = oracle(machine, seen, targets)
+        for line, (mean, sd) in zip(lines, predicted):
             line["oracle_m"], line["oracle_sd_m"] = mean.tolist(), sd.tolist()
+    if a.oracle and a.map_step:
+        x = grid(travel, a.map_step)
+        with open(os.path.join(a.out, "map.csv"), "w") as fh:
+            fh.write("x_m,y_m,z_m,px_m,py_m,pz_m,truth_x_m,truth_y_m,truth_z_m,oracle_x_m,oracle_y_m,oracle_z_m\n")
+            for p in val_offsets:
+                truth, mean = machine.error(x, p), posterior.error(x, p)
+                for xi, ti, mi in zip(x, truth, mean):
+                    fh.write(",".join(f"{v:.12g}" for v in (*xi, *p, *ti, *mi)) + "\n")
     with open(os.path.join(a.out, "validation.json"), "w") as fh:
         json.dump({"method": a.method, "topology": a.topology, "travel": travel, "seed": a.seed, "lines": lines}, fh, indent=1)
 
