@@ -16,7 +16,9 @@
 //! Bayes estimator, told the truth's own basis and prior (`--oracle`), the least error any
 //! estimator can have on average on this family and these readings. Its uncertainty is asserted
 //! to be calibrated (the same 0.7 to 1.3), so that it is a yardstick; the ratio is measured, not
-//! bound (README, "On data we did not simulate").
+//! bound (README, "On data we did not simulate"). So is the ratio in the issue's own measure, the
+//! volumetric map's error over the volume with the gauge removed ([`MapError`]): `volcal map`
+//! against the map of the oracle's posterior-mean machine, on the same grid.
 
 use std::path::Path;
 use std::process::Command;

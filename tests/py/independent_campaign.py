@@ -41,14 +41,17 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   the readings (the Bayes estimator under the prior the truth was drawn from), with a flat prior
   on the beams' origins and the stations' dead paths, and its uncertainty the posterior's. No
   estimator does better on this family and these readings on average, so volcal's error over
-  the oracle's says how near the information limit it comes.
+  the oracle's says how near the information limit it comes. With `--map-step S` also the map
+  it would draw: its posterior-mean machine's volumetric error, beside the truth's, on the grid
+  `volcal map --step S` uses, at each probe offset of the campaign.
 
 Usage:
     independent_campaign.py --method beams|tracer --topology FXYZ --travel "0,1;0,0.8;-0.6,0" \
-        --seed N --points 25 [--oracle] --out DIR
+        --seed N --points 25 [--oracle [--map-step 0.2]] --out DIR
 
 writes DIR/campaign.csv (volcal's campaign CSV) and DIR/validation.json (with `--oracle`, each
-line also has `oracle_m` and `oracle_sd_m`). Noise as volcal's
+line also has `oracle_m` and `oracle_sd_m`; with `--map-step`, DIR/map.csv: the point, the
+probe offset, the truth's and the oracle's error vector). Noise as volcal's
 defaults (interferometer 0.05 um, repeatability 0.2 um, tracer 0.1 um + 0.2 ppm), so that the
 two-line machine file states it. Needs NumPy.
 """
