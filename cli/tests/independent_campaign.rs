@@ -62,20 +62,8 @@ fn run(cmd: &mut Command) -> String {
 }
 
 /// Simulates `method` for `seed` with the independent simulator, solves it with the two-line
-/// machine file and predicts every validation line.
-fn campaign(
-    py: &Path,
-    dir: &Path,
-    method: &str,
-    topology: &str,
-    travel: [[f64; 2]; 3],
-    seed: u64,
-) -> (Vec<Target>, MapError) {
-    let (targets, _, map) = validated(py, dir, method, topology, travel, seed);
-    (targets, map)
-}
-
-/// [`campaign`], and the names of the targets given no number (not determined).
+/// machine file and predicts every validation line: the targets given a number, the names of
+/// those given none (not determined), and the map's error ([`MapError`]).
 fn validated(
     py: &Path,
     dir: &Path,
@@ -375,7 +363,7 @@ fn predicted_within_uncertainty(label: &str, method: &str, topology: &str, trave
     let dir = volcal_tests::scratch(&format!("independent-{method}-{topology}"));
     let (mut targets, mut map) = (Vec::new(), MapError::default());
     for s in seeds() {
-        let (t, m) = campaign(&py, &dir, method, topology, travel, s);
+        let (t, _, m) = validated(&py, &dir, method, topology, travel, s);
         targets.extend(t);
         map = map.add(m);
     }
