@@ -152,8 +152,7 @@ fn validated(
         let (truth, oracle, oracle_sigma) = (series("deviation_m"), series("oracle_m"), series("oracle_sd_m"));
         let text = std::fs::read_to_string(&csv).unwrap();
         let mut rows = text.lines();
-        let head: Vec<&str> = rows.next().unwrap().split(',').collect();
-        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let col = columns(rows.next().unwrap());
         let (pc, uc) = (col("predicted_m"), col("u_predicted_m"));
         for (i, row) in rows.enumerate() {
             // The start, where the interferometer is zeroed, has no deviation to test.
@@ -182,6 +181,11 @@ fn validated(
         }
     }
     (out, open, map)
+}
+
+/// The column of each name in a CSV header of volcal's (`volcal validate`, `volcal map`).
+fn columns(header: &str) -> impl Fn(&str) -> usize + '_ {
+    move |name| header.split(',').position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header}"))
 }
 
 /// Spacing of the map grid on which volcal's map and the oracle's are compared with the truth.
@@ -236,8 +240,7 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
         let args = ["map", "model.json", "--step", MAP_STEP, "--probe", probe, "--out", out.to_str().unwrap()];
         run(Command::new(env!("CARGO_BIN_EXE_volcal")).current_dir(d).args(args));
         let text = std::fs::read_to_string(&out).unwrap();
-        let head: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let col = columns(text.lines().next().unwrap());
         let (e, det) = (col("ex_m"), col("determined"));
         for row in text.lines().skip(1) {
             let v = numbers(row);
@@ -461,8 +464,7 @@ fn map_and_tables_say_what_is_open(d: &Path) {
     assert!(out.status.success(), "{said}");
     assert!(said.contains("the data do not determine the error at") && said.contains("measure"), "{said}");
     let map = std::fs::read_to_string(d.join("map.csv")).unwrap();
-    let head: Vec<&str> = map.lines().next().unwrap().split(',').collect();
-    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let col = columns(map.lines().next().unwrap());
     let (e, u, det) = (col("e_norm_m"), col("u95_m"), col("determined"));
     let (mut open, mut given) = (0, 0);
     for row in map.lines().skip(1) {
