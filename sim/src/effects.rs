@@ -284,6 +284,9 @@ impl Injection for Latency {
     fn record(&self, s: &Sample, r: &mut Reading) {
         r.x -= s.velocity * self.tau_s;
     }
+    fn delay_s(&self) -> f64 {
+        self.tau_s
+    }
 }
 
 /// `reversal`: backlash of each axis: the actual position lags by half the backlash behind the

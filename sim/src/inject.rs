@@ -55,4 +55,11 @@ pub trait Injection: Send + Sync {
     fn optical(&self, _s: &Sample, _length_m: &mut f64) {}
     /// Recording-side effects: perturbs the reading as written (e.g. delayed coordinates).
     fn record(&self, _s: &Sample, _r: &mut Reading) {}
+    /// How much older than their stamps the recorded coordinates are, seconds (a latency).
+    /// [`Injection::record`] applies it to one reading through its velocity (`x - v tau`);
+    /// a node that samples the machine's motion applies it to the whole state instead, since a
+    /// motion's corners are where `x - v tau` and the delayed motion part.
+    fn delay_s(&self) -> f64 {
+        0.0
+    }
 }

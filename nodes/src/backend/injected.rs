@@ -94,6 +94,12 @@ impl Injected {
         self.effects.is_empty()
     }
 
+    /// How much older than their stamps the machine's recorded coordinates are, nanoseconds
+    /// (the injected latencies; [`volcal_sim::Injection::delay_s`]).
+    pub fn delay_ns(&self) -> i64 {
+        (self.effects.iter().map(|e| e.delay_s()).sum::<f64>() * 1e9).round() as i64
+    }
+
     /// The effects as the truth file records them.
     pub fn truth(&self) -> Vec<InjectedTruth> {
         self.effects

@@ -144,6 +144,12 @@ pub trait MachineBackend {
     fn next_change_ns(&self) -> Option<i64> {
         None
     }
+    /// Where the reported coordinates of a motion commanded at `now_ns` leave their start
+    /// (later than `now_ns` by their latency): the node's start sample is stamped there, so
+    /// that the samples stand at the reported path's corners.
+    fn start_corner_ns(&self, now_ns: i64) -> i64 {
+        now_ns
+    }
     /// An on-the-fly segment starts (`true`, the sequencer's `SEGMENT_START`) or ends.
     fn on_the_fly(&mut self, _running: bool) {}
     /// Simulated backends: the actual reflector position at `now_ns` (`/sim/truth/reflector`).

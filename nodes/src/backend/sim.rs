@@ -591,6 +591,8 @@ pub struct SimMachine {
     from: Point3<f64>,
     cmd: MotionCommand,
     t0_ns: i64,
+    /// The injected latency: the state reported at `t` is the machine's at `t - delay_ns`.
+    delay_ns: i64,
 }
 
 impl SimMachine {
@@ -603,6 +605,7 @@ impl SimMachine {
             from: home,
             cmd: MotionCommand { position_id: 0, target: home, probe_offset: Vector3::zeros(), speed_mps: 1.0 },
             t0_ns: now_ns,
+            delay_ns: world.injected.delay_ns(),
         }
     }
 
@@ -645,20 +648,25 @@ impl MachineBackend for SimMachine {
     }
 
     fn state(&mut self, now_ns: i64) -> MachineState {
-        let s = self.kinematic(now_ns);
-        let t_s = self.clock.t_s(now_ns);
-        // The velocity the recording-side effects see is the mean over the last millisecond,
-        // so that a latency below it reports exactly where the machine was that much earlier,
-        // at the corners of a motion too (at rest before a start, still moving before an
-        // arrival).
-        const WINDOW_NS: i64 = 1_000_000;
-        let mean_velocity = (s.position - self.kinematic(now_ns - WINDOW_NS).position) / (WINDOW_NS as f64 * 1e-9);
-        let (position, _) = self.injected.record(t_s, &s.position, &s.probe_offset, &mean_velocity, None);
+        // A latency delays the whole state: where the machine was, its velocity and whether it
+        // had arrived. Applied as `x - v tau` (the recording-side hook, given the velocity) it
+        // would be wrong near a corner, and the node's corner samples would stand at the
+        // undelayed corners: the reported path, interpolated between them, is then off by up to
+        // `v tau` for a sample interval after each start, which the diagnosis read as small
+        // beam breaks. The hook is given no velocity, so that the delay is not applied twice.
+        let at = now_ns - self.delay_ns;
+        let s = self.kinematic(at);
+        let (position, _) =
+            self.injected.record(self.clock.t_s(at), &s.position, &s.probe_offset, &Vector3::zeros(), None);
         MachineState { position, ..s }
     }
 
     fn next_change_ns(&self) -> Option<i64> {
-        Some(self.arrival_ns())
+        Some(self.arrival_ns() + self.delay_ns)
+    }
+
+    fn start_corner_ns(&self, now_ns: i64) -> i64 {
+        now_ns + self.delay_ns
     }
 
     fn on_the_fly(&mut self, running: bool) {
@@ -709,6 +717,32 @@ impl EnvironmentBackend for SimEnvironment {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn world(inject: &str) -> SimWorld {
+        let args = ["--ros-args", "-p", &format!("inject:={inject}")].map(String::from);
+        SimWorld::from_args(&NodeArgs::parse(&args).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn a_latency_delays_the_whole_state_corners_included() {
+        let tau = 175;
+        let (plain, late) = (world(""), world(&format!("latency:latency_s={tau}e-9")));
+        let (mut a, mut b) = (SimMachine::new(&plain, 0), SimMachine::new(&late, 0));
+        let target = plain.machine.layout.travel.centre() + Vector3::new(0.01, 0.0, 0.0);
+        let cmd = MotionCommand { position_id: 1, target, probe_offset: Vector3::zeros(), speed_mps: 2.0 };
+        a.move_to(&cmd, 1_000_000).unwrap();
+        b.move_to(&cmd, 1_000_000).unwrap();
+        // The motion leaves where the delayed coordinates leave, and arrives a latency late.
+        assert_eq!(b.start_corner_ns(1_000_000), 1_000_000 + tau);
+        assert_eq!(b.next_change_ns(), a.next_change_ns().map(|t| t + tau));
+        // Around the start (at rest, then moving), mid-motion and around the arrival.
+        for t in
+            [999_000, 1_000_000, 1_000_100, 1_000_175, 1_000_300, 3_000_000, 5_999_900, 6_000_000, 6_000_100, 6_000_200]
+        {
+            let (sa, sb) = (a.state(t), b.state(t + tau));
+            assert_eq!((sb.position, sb.velocity, sb.in_position), (sa.position, sa.velocity, sa.in_position), "{t}");
+        }
+    }
 
     #[test]
     fn counter_flags_mid_line_restarts_only() {

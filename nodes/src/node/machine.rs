@@ -161,14 +161,16 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                 },
                 now,
             )?;
-            // The motion starts now: a sample at this corner, then samples at the fixed rate.
-            let s0 = backend.state(now);
+            // The motion starts now: a sample at this corner (where the reported coordinates
+            // start), then samples at the fixed rate.
+            let corner = backend.start_corner_ns(now);
+            let s0 = backend.state(corner);
             if simulated {
                 publish_truth(&mut backend, now)?;
             }
             if !s0.in_position {
                 // (A motion of zero length has only its arrival corner.)
-                emit(now, &s0, &mut acc, true)?;
+                emit(corner, &s0, &mut acc, true)?;
             }
             next_sample = now + moving_ns;
             motion_end = backend.next_change_ns();
