@@ -656,7 +656,7 @@ pub(crate) struct RemlResult {
 /// only its size. Nor a floor no looser than the geometric mean smoothing of the functions of
 /// the same kind that REML resolved (stop 57, an experiment): the paper's tables with sparse
 /// beams and linear tables came within 10 % (0.848 -> 1.033, seeds 1-20), but 586 components
-/// instead of 24 lay beyond 3 sigma, most of them at the start of X's travel, which the floor's
+/// instead of 24 lay beyond 3 sigma, over half at the start of X's travel, which the floor's
 /// long waves had covered.
 pub const DETAIL_FLOOR: f64 = 3.0;
 
