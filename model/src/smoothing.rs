@@ -60,6 +60,13 @@ use faer::{Mat, Side};
 /// predicted 0.94, 1.03, 1.15) at three to five times the solve time. The oracle told the
 /// family but not where its bump and breakpoints lie is 1.243 times the oracle there
 /// (`Oracle::located` in the tests; docs/representation-auto.md).
+///
+/// The bow stays free. A second derivative's penalty beside this one, whether with a fixed
+/// share (`int f'''^2 + (pi^2 / L^2) int f''^2`) or with a smoothing parameter of its own that
+/// REML estimates, puts the bow under the prior (an experiment, stop 58, not kept). On the
+/// independent simulator's beams, the face diagonals' long wave, which the readings leave open,
+/// was then stated as 0.84 to 0.88 um for errors of 2.26 to 2.32 um (largest |z| 12.5), where the
+/// free bow states 1.75 um for 2.12 um (docs/representation-auto.md, "The bow under a penalty").
 pub const PENALTY_ORDER: usize = 3;
 
 /// Pieces of each function's travel with a smoothing parameter of their own. The roughness of
