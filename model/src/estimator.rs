@@ -270,8 +270,8 @@ impl Dims {
     }
 }
 
-/// Current iterate.
-#[derive(Clone)]
+/// Current iterate. Not `Clone`: a copy of the points and frames (about 2.7 MB on the patent
+/// example) is never needed, see [`State::without_points`].
 struct State {
     d: Vec<f64>,
     /// Direction of each group (beams: line direction; ranges: unused).
@@ -284,8 +284,8 @@ struct State {
 
 impl State {
     /// The coefficients and directions alone, for a state that [`update_directions`] completes:
-    /// it recomputes the points and frames, which a clone would copy for nothing (the frames are
-    /// about 2 MB on the patent example, copied at every step of a solve).
+    /// it recomputes the points and frames, which a clone would copy for nothing at every step of
+    /// a solve.
     fn without_points(&self) -> State {
         State { d: self.d.clone(), dirs: self.dirs.clone(), actual: Vec::new(), frames: Vec::new() }
     }
