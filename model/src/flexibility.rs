@@ -54,7 +54,7 @@ pub struct Auto {
     /// knots'.
     pub max_intervals: usize,
     /// Whether linear tables are tried where the readings show kinks at equally spaced nodes
-    /// ([`choose_tables`]). Off by default for now: over the paper's tables every held-out
+    /// (`choose_tables`). Off by default for now: over the paper's tables every held-out
     /// figure improves with them, but with sparse beams they lower the map error while the
     /// detail floor's over-statement of the other axes stays, and actual / predicted falls to
     /// 0.586 on `representation_auto`'s seeds, below the 0.6 its test allows
@@ -111,7 +111,7 @@ pub struct AxisKnots {
     pub bound: KnotBound,
     pub tests: Vec<RefinementTest>,
     /// Where the axis's functions are linear tables instead of cubic B-splines
-    /// ([`choose_tables`]).
+    /// (`choose_tables`).
     pub table: Option<TableChoice>,
 }
 
@@ -369,7 +369,7 @@ pub const REFINE_P: f64 = 1e-3;
 /// smoothing is replaced.
 ///
 /// Where the readings show kinks at equally spaced nodes, an axis's functions become linear
-/// tables instead ([`choose_tables`]).
+/// tables instead (`choose_tables`).
 ///
 /// Axes left bounded by their positions then have their interpolation checked against the
 /// readings (`check_interpolation`): the variance of a prediction between the positions is
@@ -511,7 +511,7 @@ fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
     unreachable!("the last round never refines")
 }
 
-/// Intervals of the linear tables tried per axis ([`choose_tables`]), equally spaced over the
+/// Intervals of the linear tables tried per axis (`choose_tables`), equally spaced over the
 /// travel: from two (one kink in the middle) to sixteen, beyond which the cubic B-splines'
 /// refinement (up to [`Auto::max_intervals`]) follows kinks about as well.
 pub const TABLE_INTERVALS: [usize; 2] = [2, 16];
