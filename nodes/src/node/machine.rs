@@ -85,12 +85,12 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
         Ok(())
     };
     let moving_ns = (1e9 / rate) as i64;
+    // The simulated instruments interpolate the reflector truth in time: it is published on a
+    // grid at `rate_hz` whether or not the machine moves, and at the corners of each motion.
+    let mut truth_grid = TruthGrid { next_ns: if simulated { now_ns() } else { i64::MAX }, period_ns: moving_ns };
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut next_idle = now_ns();
     let mut next_sample = now_ns();
-    // The simulated instruments interpolate the reflector truth in time: it is published at
-    // `rate_hz` whether or not the machine moves, and at the corners of each motion.
-    let mut next_truth = if simulated { now_ns() } else { i64::MAX };
     let mut motion_end: Option<i64> = None;
     let mut last: Option<MachineState> = None;
     let mut acc = MachinePositionBatch::default();
@@ -128,7 +128,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
     };
     while !shutdown::requested() {
         let moving = last.is_some_and(|l| !l.in_position);
-        let mut due = (if moving { next_sample } else { next_idle }).min(next_truth);
+        let mut due = (if moving { next_sample } else { next_idle }).min(truth_grid.next_ns);
         if let Some(t) = motion_end.filter(|t| *t > now_ns() - 1_000_000) {
             due = due.min(t);
         }
@@ -152,6 +152,14 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                     continue;
                 }
             }
+            if simulated {
+                // The truth up to this corner (short of an arrival not yet reported), while the
+                // backend still plays the motion before it.
+                let pending_arrival = motion_end.filter(|t| *t <= now && last.is_some_and(|l| !l.in_position));
+                for t in truth_grid.due(pending_arrival.unwrap_or(now) - 1) {
+                    publish_truth(&mut backend, t)?;
+                }
+            }
             backend.move_to(
                 &MotionCommand {
                     position_id: c.position_id,
@@ -167,6 +175,8 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             let s0 = backend.state(corner);
             if simulated {
                 publish_truth(&mut backend, now)?;
+                // The grid resumes after this corner: the truth goes out in stamp order.
+                truth_grid.resume_after(now);
             }
             if !s0.in_position {
                 // (A motion of zero length has only its arrival corner.)
@@ -198,6 +208,9 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             // instruments know where the reflector is when the sequencer reacts to it.
             let sa = backend.state(arrival);
             if simulated {
+                for t in truth_grid.due(arrival - 1) {
+                    publish_truth(&mut backend, t)?;
+                }
                 publish_truth(&mut backend, arrival)?;
             }
             emit(arrival, &sa, &mut acc, true)?;
@@ -210,9 +223,10 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
         } else if !s.in_position {
             last = Some(s);
         }
-        if simulated && now >= next_truth {
-            publish_truth(&mut backend, now)?;
-            next_truth = next_truth.max(now - moving_ns) + moving_ns;
+        if simulated {
+            for t in truth_grid.due(now) {
+                publish_truth(&mut backend, t)?;
+            }
         }
         for t in latch {
             // Latch the coordinates at the trigger.
@@ -223,4 +237,61 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
         }
     }
     Ok(())
+}
+
+/// The stamps at which the simulated machine publishes its reflector truth: a fixed grid,
+/// published retroactively when the loop was late. The simulated instruments interpolate
+/// between consecutive truth samples; a sample published only where the loop woke would leave
+/// them a chord across the stall (49 ms at 2 m/s is 98 mm of path, whose curvature the readings
+/// then carry as a false step of a few tenths of a micrometre at the next stop).
+struct TruthGrid {
+    next_ns: i64,
+    period_ns: i64,
+}
+
+impl TruthGrid {
+    /// After a stall of more than this many periods the grid restarts where the loop is.
+    const MAX_CATCH_UP: i64 = 1000;
+
+    /// The grid stamps up to `until_ns`, in order; the grid then waits for the next one.
+    fn due(&mut self, until_ns: i64) -> Vec<i64> {
+        if self.next_ns < until_ns - Self::MAX_CATCH_UP * self.period_ns {
+            self.next_ns = until_ns;
+        }
+        let mut stamps = Vec::new();
+        while self.next_ns <= until_ns {
+            stamps.push(self.next_ns);
+            self.next_ns += self.period_ns;
+        }
+        stamps
+    }
+
+    /// A corner was published at `corner_ns`: the grid resumes a period after it, so that the
+    /// truth goes out in stamp order.
+    fn resume_after(&mut self, corner_ns: i64) {
+        self.next_ns = self.next_ns.max(corner_ns + self.period_ns);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TruthGrid;
+
+    #[test]
+    fn a_late_loop_publishes_the_truth_grid_it_missed() {
+        let mut g = TruthGrid { next_ns: 0, period_ns: 500_000 };
+        assert_eq!(g.due(1_200_000), vec![0, 500_000, 1_000_000]);
+        // A stall of 49 ms: every grid stamp in it, none twice, none ahead of the loop.
+        let late = g.due(50_200_000);
+        assert_eq!(late.len(), 98);
+        assert_eq!(late.first(), Some(&1_500_000));
+        assert!(late.windows(2).all(|w| w[1] - w[0] == 500_000));
+        assert!(g.due(50_400_000).is_empty());
+        // A corner between grid stamps: nothing stamped before it goes out after it.
+        g.resume_after(50_700_000);
+        assert_eq!(g.due(51_200_000), vec![51_200_000]);
+        // Beyond the catch-up limit the grid restarts where the loop is.
+        let long = g.due(51_200_000 + 2_000 * 500_000);
+        assert_eq!(long, vec![51_200_000 + 2_000 * 500_000]);
+    }
 }
