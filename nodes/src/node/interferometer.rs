@@ -44,7 +44,7 @@ pub fn run_with<B: InterferometerBackend>(node: &mut RosNode, mut backend: B) ->
     let mut truth = if backend.simulated() {
         Some((
             node.subscription::<BeamState>(topics::TRUTH_BEAM, qos::latched())?,
-            node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?,
+            node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::truth())?,
         ))
     } else {
         None

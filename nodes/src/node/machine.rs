@@ -68,7 +68,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
         None
     };
     let truth =
-        if simulated { Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?) } else { None };
+        if simulated { Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::truth())?) } else { None };
     let publish_truth = |backend: &mut B, now: i64| -> Result<()> {
         if let (Some(t), Some(Truth::Reflector { stamp_ns, position_id, settled, actual, velocity })) =
             (&truth, backend.truth(now))

@@ -190,7 +190,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
     let out = node.publisher::<MachinePosition>(topics::MACHINE_POSITION, qos::data())?;
     let mut writers = vec![node.publisher::<JointTrajectory>(&traj_topic, qos::commands())?];
     let truth = match dry {
-        Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?),
+        Some(_) => Some(node.publisher::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::truth())?),
         None => None,
     };
     let (js_param, js_topic) = (js_topic.clone(), node.resolve(&js_topic));

@@ -201,7 +201,7 @@ pub fn run(node: &mut RosNode) -> Result<()> {
         sources.push(source::<ReflectorTruth>(
             node,
             topics::TRUTH_REFLECTOR,
-            d(),
+            qos::truth(),
             |m| m.header.stamp.to_nanos(),
             none,
         )?);

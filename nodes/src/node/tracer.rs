@@ -33,7 +33,7 @@ pub fn run_with<B: TracerBackend>(node: &mut RosNode, mut backend: B) -> Result<
     node.warn_unused_parameters();
     let mut triggers = node.subscription::<Trigger>(topics::TRIGGER, qos::commands())?;
     let mut truth = if backend.simulated() {
-        Some(node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::data())?)
+        Some(node.subscription::<ReflectorTruth>(topics::TRUTH_REFLECTOR, qos::truth())?)
     } else {
         None
     };

@@ -14,6 +14,15 @@ pub fn data() -> QosProfile {
         .history(History::KeepLast { depth: 4096 })
 }
 
+/// The simulated reflector truth (`/sim/truth/reflector`), published at the machine's rate
+/// whether or not it moves: 2 kHz on the on-the-fly runs. [`data`]'s 4 096 samples are 2 s of
+/// it, and a subscriber starved for longer (the recorder, with the node set sharing two cores
+/// with other work: a 2.2 s stall, 125 ms of truth lost) would lose samples, and the simulated
+/// instruments would interpolate across the hole. 65 536 samples are half a minute of it.
+pub fn truth() -> QosProfile {
+    data().history(History::KeepLast { depth: 65_536 })
+}
+
 /// Commands and triggers.
 pub fn commands() -> QosProfile {
     QosProfile::publisher_default()
