@@ -88,6 +88,9 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
     // The simulated instruments interpolate the reflector truth in time: it is published on a
     // grid at `rate_hz` whether or not the machine moves, and at the corners of each motion.
     let mut truth_grid = TruthGrid { next_ns: if simulated { now_ns() } else { i64::MAX }, period_ns: moving_ns };
+    let publish_truth_grid = |backend: &mut B, grid: &mut TruthGrid, until_ns: i64| -> Result<()> {
+        grid.due(until_ns).into_iter().try_for_each(|t| publish_truth(backend, t))
+    };
     let idle_ns = (1e9 / idle_rate) as i64;
     let mut next_idle = now_ns();
     let mut next_sample = now_ns();
@@ -156,9 +159,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
                 // The truth up to this corner (short of an arrival not yet reported), while the
                 // backend still plays the motion before it.
                 let pending_arrival = motion_end.filter(|t| *t <= now && last.is_some_and(|l| !l.in_position));
-                for t in truth_grid.due(pending_arrival.unwrap_or(now) - 1) {
-                    publish_truth(&mut backend, t)?;
-                }
+                publish_truth_grid(&mut backend, &mut truth_grid, pending_arrival.unwrap_or(now) - 1)?;
             }
             backend.move_to(
                 &MotionCommand {
@@ -208,9 +209,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             // instruments know where the reflector is when the sequencer reacts to it.
             let sa = backend.state(arrival);
             if simulated {
-                for t in truth_grid.due(arrival - 1) {
-                    publish_truth(&mut backend, t)?;
-                }
+                publish_truth_grid(&mut backend, &mut truth_grid, arrival - 1)?;
                 publish_truth(&mut backend, arrival)?;
             }
             emit(arrival, &sa, &mut acc, true)?;
@@ -224,9 +223,7 @@ pub fn run_with<B: MachineBackend>(node: &mut RosNode, mut backend: B, simulated
             last = Some(s);
         }
         if simulated {
-            for t in truth_grid.due(now) {
-                publish_truth(&mut backend, t)?;
-            }
+            publish_truth_grid(&mut backend, &mut truth_grid, now)?;
         }
         for t in latch {
             // Latch the coordinates at the trigger.
