@@ -120,6 +120,17 @@ fn validated(
         .arg(&machine)
         .arg("--out")
         .arg(&model));
+    if method == "beams" {
+        // The 45 beams see each face diagonal's two straightnesses only in combination, and
+        // leave their odd part open alike: one smoothing parameter for each pair (issue 12).
+        let shared = shared_smoothing(&model);
+        for pair in ["EYX+EXY", "EZX+EXZ", "EZY+EYZ"] {
+            assert!(
+                shared.iter().any(|s| s == pair),
+                "{method} seed {seed}: {pair} do not share a smoothing, only {shared:?}"
+            );
+        }
+    }
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("validation.json")).unwrap()).unwrap();
     let mut probes: Vec<String> = v["lines"]
         .as_array()
@@ -181,6 +192,19 @@ fn validated(
         }
     }
     (out, open, map)
+}
+
+/// The functions of `model` (a model file of `volcal solve`) that share a smoothing parameter,
+/// as `A+B` per function and each function it shares with.
+fn shared_smoothing(model: &Path) -> Vec<String> {
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(model).unwrap()).unwrap();
+    let mut out = Vec::new();
+    for f in m["representation_choice"]["smoothing"].as_array().into_iter().flatten() {
+        for other in f["shared_with"].as_array().into_iter().flatten() {
+            out.push(format!("{}+{}", f["name"].as_str().unwrap_or("?"), other.as_str().unwrap_or("?")));
+        }
+    }
+    out
 }
 
 /// The column of each name in a CSV header of volcal's (`volcal validate`, `volcal map`).

@@ -1002,7 +1002,8 @@ pub fn fit<'a>(
     let mut normal = first;
     // Smoothing: the parameters by REML on the quadratic model at the start (for beams, linear
     // up to the beam directions, this is the final estimate), the factor with the penalty.
-    let mut reml_log = RemlLog::default();
+    let mut reml_log =
+        RemlLog { open_to_prior: (ident.report.prior_determined > 0).then_some(tol), ..RemlLog::default() };
     let factor = if prob.penalty.is_some() {
         if reml_wanted {
             reml_round(&mut prob, &mut state, &normal.n, &normal, &z, &scale, &mut reml_log);
@@ -1233,6 +1234,34 @@ pub fn fit<'a>(
     Ok(Fit { prob, state, z, factor, scale, solution, rows: std::sync::OnceLock::new() })
 }
 
+/// Pairs of smoothing groups that the readings leave open alike
+/// ([`ReducedPenalty::alike_where_open`] on the null space of the reduced data matrix `m_data`,
+/// eigenvalues below `tol` of the largest), among the pairs a beam plan can leave open that way:
+/// the two straightnesses of one plane (`EXY` and `EYX`, `EXZ` and `EZX`, `EYZ` and `EZY`),
+/// which a beam along that plane's face diagonal sees only in combination. Other functions
+/// whose shares look alike there are different physics that other beams measure apart: sharing
+/// theirs (the same axis's straightnesses, its angles; an experiment, not kept) made sparse
+/// beams less accurate and their uncertainty under-stated (docs/representation-auto.md, "One
+/// smoothing for a face diagonal's straightnesses").
+fn open_alike(m_data: &Mat<f64>, rp: &ReducedPenalty, pen: &Penalty, tol: f64) -> Vec<(usize, usize)> {
+    let Ok(eig) = m_data.self_adjoint_eigen(Side::Lower) else { return Vec::new() };
+    let lam = eig.S().column_vector();
+    let lmax = (0..lam.nrows()).map(|i| lam[i]).fold(0.0, f64::max);
+    // Eigenvalues ascend: the null space is the leading columns.
+    let k = (0..lam.nrows()).take_while(|&i| lam[i] < tol * lmax).count();
+    if k == 0 {
+        return Vec::new();
+    }
+    let v = eig.U().subcols(0, k).to_owned();
+    let function = |g: usize| pen.blocks.iter().find(|b| b.group == g).map(|b| b.function);
+    rp.alike_where_open(&v, |a, b| match (function(a), function(b)) {
+        (Some(fa), Some(fb)) => {
+            fa.is_straightness() && fb.is_straightness() && fa.axis == fb.component && fb.axis == fa.component
+        }
+        _ => false,
+    })
+}
+
 /// What REML did over its rounds.
 #[derive(Default)]
 struct RemlLog {
@@ -1242,6 +1271,9 @@ struct RemlLog {
     at_upper: Vec<bool>,
     /// Whether functions determined only together were given one parameter (first round).
     merged: bool,
+    /// The rank tolerance of the data's null space, when the readings leave directions that only
+    /// the prior determines (the first round then looks for functions open alike there).
+    open_to_prior: Option<f64>,
     /// The noise scale of the last round.
     scale: Option<smoothing::Scale>,
     /// The last round's penalties in reduced coordinates, for the covariance at the solution;
@@ -1279,7 +1311,15 @@ fn reml_round(
     let mut rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
     if !log.merged {
         log.merged = true;
-        let pairs = rp.overlapping_pairs();
+        let mut pairs = rp.overlapping_pairs();
+        if let Some(tol) = log.open_to_prior {
+            let alike = open_alike(&m_data, &rp, pen, tol);
+            if !alike.is_empty() {
+                let groups: Vec<usize> = alike.iter().flat_map(|&(a, b)| [a, b]).collect();
+                pen.relative_roughness(&groups, |f| prob.layout.basis(f).length());
+                pairs.extend(alike);
+            }
+        }
         if !pairs.is_empty() {
             pen.merge(&pairs);
             rp = ReducedPenalty::new(pen, n, scale, &state.d[..n_u], |x| z.zt(x));
