@@ -10,6 +10,9 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   scaled to a largest excursion of 10 um (positioning), 4 um (straightness) or 8 urad
   (rotations), and three squareness errors of up to 25 urad. This family is none of volcal's
   representations (no B-spline, polynomial or table) and none of its test families.
+  `--amplitude K` scales every error by K and `--length-scale LO,HI` sets the range of the
+  length scales: machines of other magnitudes and shapes, for studies of what the test seeds do
+  not have (the defaults draw the same machine as before these options).
 - The errors compose as ISO 230-1 and patent eq. (7) say: along the chain from workpiece to tool,
   each axis's translation errors plus its rotation errors acting on the lever arm to the tool
   (the coordinates of the axes it carries plus the probe offset), and the squareness errors
@@ -72,9 +75,10 @@ SQUARENESS = ("EC0Y", "EB0Z", "EA0Z")
 SQUARENESS_SD = 12.5e-6
 
 
-def smooth_draw(rng, lo, hi, amplitude):
-    """A squared-exponential Gaussian-process draw on [lo, hi], largest excursion `amplitude`."""
-    length = (hi - lo) * rng.uniform(0.15, 0.4)
+def smooth_draw(rng, lo, hi, amplitude, length_scale=(0.15, 0.4)):
+    """A squared-exponential Gaussian-process draw on [lo, hi], largest excursion `amplitude`,
+    length scale drawn uniformly from `length_scale` (fractions of the travel)."""
+    length = (hi - lo) * rng.uniform(*length_scale)
     m = 400
     omega = rng.normal(0.0, 1.0 / length, m)
     phase = rng.uniform(0.0, 2.0 * np.pi, m)
@@ -103,9 +107,13 @@ class Draw:
 
 
 class Machine:
-    def __init__(self, topology, travel, seed):
+    def __init__(self, topology, travel, seed, amplitude=1.0, length_scale=(0.15, 0.4)):
+        """`amplitude` scales every error (the functions' largest excursions and the squareness
+        errors' spread); `length_scale` is the range of the functions' length scales, fractions of
+        the travel. The defaults are the machine of the docstring."""
         self.chain = [c for c in topology if c in AXES]
         self.travel = travel
+        self.sq_sd = SQUARENESS_SD * amplitude
         rng = np.random.default_rng(seed)
         self.f = {}
         for a in AXES:
@@ -115,8 +123,8 @@ class Machine:
                     amp = 10e-6 if c == a else 4e-6
                 else:
                     amp = 8e-6
-                self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amp)
-        self.sq = {s: float(np.clip(rng.normal(0.0, SQUARENESS_SD), -25e-6, 25e-6)) for s in SQUARENESS}
+                self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amplitude * amp, length_scale)
+        self.sq = {s: float(np.clip(rng.normal(0.0, self.sq_sd), -2 * self.sq_sd, 2 * self.sq_sd)) for s in SQUARENESS}
 
     def error(self, x, p):
         """e(X, p) for arrays x, p of shape (n, 3)."""
@@ -157,10 +165,10 @@ class Machine:
     def covariance(self, a, b):
         """The prior covariance of `n . e(X, p)` between two sets of readings `a` and `b`
         (each a tuple x, p, n of arrays (n, 3)), under the prior the truth was drawn from: each
-        function's weights N(0, 1) on its own features, the squareness errors N(0, 12.5 urad)."""
+        function's weights N(0, 1) on its own features, the squareness errors N(0, `sq_sd`)."""
         (fa, sa), (fb, sb) = self.sensitivities(*a), self.sensitivities(*b)
-        ca = [sa[s][:, None] * SQUARENESS_SD for s in SQUARENESS]
-        cb = [sb[s][:, None] * SQUARENESS_SD for s in SQUARENESS]
+        ca = [sa[s][:, None] * self.sq_sd for s in SQUARENESS]
+        cb = [sb[s][:, None] * self.sq_sd for s in SQUARENESS]
         for name, (axis, ga) in fa.items():
             # The features at the distinct positions, reduced to their column space (exact: the
             # same kernel, fewer columns where there are fewer positions than features).
@@ -296,7 +304,7 @@ def oracle(machine, seen, targets):
     for name, (axis, g) in funcs.items():
         posterior.f[name].weight = machine.f[name].features(readings[0][:, axis]).T @ (g * alpha)
     for name in SQUARENESS:
-        posterior.sq[name] = SQUARENESS_SD**2 * float(sq[name] @ alpha)
+        posterior.sq[name] = machine.sq_sd**2 * float(sq[name] @ alpha)
     through = posterior.projected(*ends) - posterior.projected(*starts)
     assert np.allclose(through, mean / um, rtol=0, atol=1e-12), np.max(np.abs(through - mean / um))
     return out, posterior
@@ -324,10 +332,12 @@ def main():
     ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
     ap.add_argument("--oracle", action="store_true", help="also the oracle's prediction of each validation line")
     ap.add_argument("--map-step", type=float, help="with --oracle: the truth's and the oracle's map on volcal's grid of this step (map.csv)")
+    ap.add_argument("--amplitude", type=float, default=1.0, help="scales every error of the machine (1: 10 um positioning, 4 um straightness, 8 urad rotations, squareness spread 12.5 urad)")
+    ap.add_argument("--length-scale", default="0.15,0.4", help="lo,hi of the functions' length scales, fractions of the travel")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
-    machine = Machine(a.topology, travel, a.seed)
+    machine = Machine(a.topology, travel, a.seed, a.amplitude, tuple(float(v) for v in a.length_scale.split(",")))
     rng = np.random.default_rng(a.seed + 7_000_000)
     rows = []
     # What the oracle sees of each block of readings: positions, probe, the direction the
