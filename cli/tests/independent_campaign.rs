@@ -37,6 +37,15 @@ fn seeds() -> std::ops::Range<u64> {
         .unwrap_or(SEEDS)
 }
 
+/// Further arguments of the simulator's machine that `VOLCAL_INDEPENDENT_MACHINE` names (for
+/// example `--amplitude 10 --length-scale 0.05,0.15`: a study by hand of magnitudes and shapes
+/// the seeds here do not have; the bounds are the test's on any machine).
+fn machine_args() -> Vec<String> {
+    std::env::var("VOLCAL_INDEPENDENT_MACHINE")
+        .map(|v| v.split_whitespace().map(str::to_owned).collect())
+        .unwrap_or_default()
+}
+
 /// One validation target: the truth's deviation, the model's prediction and its standard
 /// uncertainty.
 struct Target {
@@ -71,6 +80,7 @@ fn validated(
     topology: &str,
     travel: [[f64; 2]; 3],
     seed: u64,
+    machine: &[String],
 ) -> (Vec<Target>, Vec<String>, MapError) {
     let root = volcal_tests::repo_root();
     let d = dir.join(format!("{method}-{seed}"));
@@ -80,6 +90,7 @@ fn validated(
     if method == "beams-sparse" {
         sim.arg("--sparse");
     }
+    sim.args(machine);
     run(sim.args([
         "--method",
         method.trim_end_matches("-sparse"),
@@ -304,7 +315,7 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
 }
 
 /// The figures of one method over the seeds; asserts the bounds.
-fn check(method: &str, targets: &[Target], expected: usize) {
+fn check(method: &str, targets: &[Target], expected: usize, n_seeds: usize, calibrated: bool) {
     // Where the readings contradict the interpolation between a tracer's stops, the targets there
     // are not determined and get no number; most must get one, or nothing is tested.
     assert!(
@@ -312,7 +323,7 @@ fn check(method: &str, targets: &[Target], expected: usize) {
         "{method}: only {} of {expected} validation targets were given a number",
         targets.len()
     );
-    check_with(method, targets, expected, true)
+    check_with(method, targets, expected, n_seeds, calibrated)
 }
 
 /// RMS of `f` over `of`.
@@ -322,7 +333,7 @@ fn rms_over(of: &[&Target], f: &dyn Fn(&Target) -> f64) -> f64 {
 
 /// [`check`] without the share of targets given a number; `calibrated`: whether the RMS of the
 /// deviations over their uncertainties is bound.
-fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: bool) {
+fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize, calibrated: bool) {
     let z: Vec<f64> = targets.iter().map(|t| (t.predicted_m - t.truth_m) / t.sigma_m).collect();
     let max = z.iter().map(|v| v.abs()).fold(0.0, f64::max);
     let beyond_3 = z.iter().filter(|v| v.abs() > 3.0).count();
@@ -333,7 +344,7 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
     eprintln!(
         "{method}: {} validation targets over {} seeds (of {expected} asked; the rest not determined): max |z| {max:.2}, |z| > 3 in {beyond_3}, RMS z {rms_z:.3}; actual / predicted RMS {:.3} ({:.3} um against {:.3} um)",
         targets.len(),
-        seeds().count(),
+        n_seeds,
         actual / predicted,
         actual * 1e6,
         predicted * 1e6
@@ -383,29 +394,51 @@ fn check_with(method: &str, targets: &[Target], expected: usize, calibrated: boo
 const DEMO_TRAVEL: [[f64; 2]; 3] = [[0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]];
 const PAPER_TRAVEL: [[f64; 2]; 3] = [[0.0, 0.7], [-0.5, 0.0], [-0.7, 0.0]];
 
-/// `method`'s campaigns over [`seeds`], every validation line (`lines` per seed, 10 targets each
-/// beyond the start) predicted within its uncertainty ([`check`]).
+/// `method`'s campaigns over [`seeds`] on the machine [`machine_args`] names, every validation
+/// line (`lines` per seed, 10 targets each beyond the start) predicted within its uncertainty
+/// ([`check`]).
 fn predicted_within_uncertainty(label: &str, method: &str, topology: &str, travel: [[f64; 2]; 3], lines: usize) {
+    predicted_within_uncertainty_on(label, method, topology, travel, lines, seeds(), &machine_args(), true);
+}
+
+/// [`predicted_within_uncertainty`] over `seeds`, the simulator's machine given `machine`;
+/// `calibrated`: whether the RMS of the deviations over their uncertainties is bound
+/// ([`check_with`]).
+fn predicted_within_uncertainty_on(
+    label: &str,
+    method: &str,
+    topology: &str,
+    travel: [[f64; 2]; 3],
+    lines: usize,
+    seeds: std::ops::Range<u64>,
+    machine: &[String],
+    calibrated: bool,
+) {
     let Some(py) = volcal_tests::checker_python() else { return };
-    let dir = volcal_tests::scratch(&format!("independent-{method}-{topology}"));
+    let dir = volcal_tests::scratch(&format!(
+        "independent-{method}-{topology}{}-{}-{}",
+        machine.concat(),
+        seeds.start,
+        seeds.end
+    ));
     let (mut targets, mut map) = (Vec::new(), MapError::default());
-    for s in seeds() {
-        let (t, _, m) = validated(&py, &dir, method, topology, travel, s);
+    for s in seeds.clone() {
+        let (t, _, m) = validated(&py, &dir, method, topology, travel, s, machine);
         targets.extend(t);
         map = map.add(m);
     }
-    print_map_error(label, &map);
-    check(label, &targets, seeds().count() * lines * 10);
+    let n_seeds = seeds.count();
+    print_map_error(label, &map, n_seeds);
+    check(label, &targets, n_seeds * lines * 10, n_seeds, calibrated);
 }
 
 /// The map's error against the oracle's, pooled over the seeds (measured, not bound).
-fn print_map_error(label: &str, map: &MapError) {
+fn print_map_error(label: &str, map: &MapError, n_seeds: usize) {
     let (volcal, oracle) = map.rms_um();
     eprintln!(
-        "{label}: map error (gauge aligned) RMS {volcal:.3} um against the oracle's {oracle:.3} um: {:.2} times ({} values over {} seeds, {MAP_STEP} m grid)",
+        "{label}: map error (gauge aligned) RMS {volcal:.3} um against the oracle's {oracle:.3} um: {:.2} times ({} values over {n_seeds} seeds, {MAP_STEP} m grid)",
         volcal / oracle,
         map.values,
-        seeds().count()
     );
 }
 
@@ -420,6 +453,24 @@ fn fixed_beams_on_the_other_stacking_from_an_independent_simulator_are_predicted
     // The same plan on FYXZ (Y carries X): the issue asks for two topologies. Added at stop 54
     // with the bounds above, set before its first run.
     predicted_within_uncertainty("fixed beams, FYXZ", "beams", "FYXZ", DEMO_TRAVEL, 27);
+}
+
+/// A machine ten times as wrong (100 um of positioning, 40 um of straightness, 80 urad of
+/// rotations): the readings resolve finer detail, and the 45 beams' knots are refined up to what
+/// their positions determine. Finer knots leave each function's curvature between the positions
+/// open too, and in that larger null space the face diagonals' pairs no longer look alike; until
+/// the pairs found on the starting knots were kept through the refinement
+/// (`Smoothing::open_alike`), each straightness took its own smoothing again there (found on
+/// seed 701 by a study by hand over magnitudes the test seeds do not have, README). Seeds
+/// 701-703; the bounds on far deviations as at the usual magnitude. Not bound: the RMS of the
+/// deviations over their uncertainties, as for the sparse plan: the face diagonals, which the
+/// beams leave to the roughness prior, are over-stated (RMS z 0.585 on these seeds, 0.800 on
+/// 701-710; README, "On data we did not simulate").
+#[test]
+fn fixed_beams_on_a_machine_ten_times_as_wrong_are_predicted_within_their_uncertainty() {
+    let ten = ["--amplitude".to_string(), "10".to_string()];
+    let label = "fixed beams, FXYZ, ten times the errors";
+    predicted_within_uncertainty_on(label, "beams", "FXYZ", DEMO_TRAVEL, 27, 701..704, &ten, false);
 }
 
 #[test]
@@ -450,12 +501,12 @@ fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
     let dir = volcal_tests::scratch("independent-sparse");
     let (mut targets, mut open, mut map) = (Vec::new(), Vec::new(), MapError::default());
     for s in seeds() {
-        let (t, o, m) = validated(&py, &dir, "beams-sparse", "FXYZ", DEMO_TRAVEL, s);
+        let (t, o, m) = validated(&py, &dir, "beams-sparse", "FXYZ", DEMO_TRAVEL, s, &machine_args());
         targets.extend(t);
         open.extend(o);
         map = map.add(m);
     }
-    print_map_error("fixed beams, sparse plan, FXYZ, where the map is determined", &map);
+    print_map_error("fixed beams, sparse plan, FXYZ, where the map is determined", &map, seeds().count());
     open.sort();
     open.dedup();
     eprintln!("not determined: {open:?}");
@@ -469,7 +520,7 @@ fn a_sparse_plan_s_undetermined_lines_are_reported_as_such() {
             "the body diagonal {diagonal} was given a number at targets {given:?} although the readings leave a combination it sees open"
         );
     }
-    check_with("fixed beams, sparse plan, FXYZ", &targets, seeds().count() * 27 * 10, false);
+    check_with("fixed beams, sparse plan, FXYZ", &targets, seeds().count() * 27 * 10, seeds().count(), false);
     map_and_tables_say_what_is_open(&dir.join(format!("beams-sparse-{}", seeds().start)));
 }
 

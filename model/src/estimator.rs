@@ -1312,13 +1312,27 @@ fn reml_round(
     if !log.merged {
         log.merged = true;
         let mut pairs = rp.overlapping_pairs();
+        // Open alike: the pairs an earlier fit of these readings found (`Smoothing::open_alike`),
+        // and those found here.
+        let group = |f: crate::functions::ErrorFunction| pen.blocks.iter().find(|b| b.function == f).map(|b| b.group);
+        let mut alike: Vec<(usize, usize)> = pen
+            .open_alike
+            .iter()
+            .filter_map(|&[a, b]| Some((group(a)?.min(group(b)?), group(a)?.max(group(b)?))))
+            .collect();
         if let Some(tol) = log.open_to_prior {
-            let alike = open_alike(&m_data, &rp, pen, tol);
-            if !alike.is_empty() {
-                let groups: Vec<usize> = alike.iter().flat_map(|&(a, b)| [a, b]).collect();
-                pen.relative_roughness(&groups, |f| prob.layout.basis(f).length());
-                pairs.extend(alike);
+            for found in open_alike(&m_data, &rp, pen, tol) {
+                if !alike.contains(&found) {
+                    alike.push(found);
+                }
             }
+        }
+        if !alike.is_empty() {
+            let groups: Vec<usize> = alike.iter().flat_map(|&(a, b)| [a, b]).collect();
+            pen.relative_roughness(&groups, |f| prob.layout.basis(f).length());
+            let function = |g: usize| pen.blocks.iter().find(|b| b.group == g).map(|b| b.function);
+            pen.open_alike = alike.iter().filter_map(|&(a, b)| Some([function(a)?, function(b)?])).collect();
+            pairs.extend(alike);
         }
         if !pairs.is_empty() {
             pen.merge(&pairs);

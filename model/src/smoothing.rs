@@ -128,12 +128,20 @@ pub struct Smoothing {
     pub lambda: Option<Vec<Vec<f64>>>,
     /// Whether REML estimates the smoothing parameters.
     pub estimate: bool,
+    /// Pairs of functions that an earlier fit of the same readings found open alike (a face
+    /// diagonal's two straightnesses, [`ReducedPenalty::alike_where_open`]), to share one
+    /// smoothing parameter here too. What a plan leaves open alike is its geometry's, and stays
+    /// open on finer knots; but finer knots also leave each function's curvature between the
+    /// readings' positions open, function by function, and in that larger null space the pair's
+    /// likeness no longer shows (seen: the independent simulator's 45 beams over errors ten
+    /// times the usual, refined to the 24 intervals their 27 positions per axis determine).
+    pub open_alike: Vec<[ErrorFunction; 2]>,
 }
 
 impl Smoothing {
     /// Every function penalised, smoothing estimated by REML.
     pub fn reml() -> Smoothing {
-        Smoothing { penalised: [true; 18], lambda: None, estimate: true }
+        Smoothing { penalised: [true; 18], lambda: None, estimate: true, open_alike: Vec::new() }
     }
 
     /// The same penalties with the smoothing parameters fixed at those a solve estimated (so
@@ -145,7 +153,7 @@ impl Smoothing {
             penalised[f.function.index()] = true;
             lambda[f.function.index()] = f.lambda.clone();
         }
-        Smoothing { penalised, lambda: Some(lambda), estimate: false }
+        Smoothing { penalised, lambda: Some(lambda), estimate: false, open_alike: report.open_alike.clone() }
     }
 
     /// The same penalties, REML starting from the parameters a solve estimated (a refit on a
@@ -197,6 +205,9 @@ pub struct SmoothingReport {
     /// 1, or more when the penalised fit leaves a misfit the model cannot absorb (see
     /// `Scale`).
     pub noise_scale: f64,
+    /// The pairs that share a smoothing parameter because the readings leave them open alike
+    /// ([`Smoothing::open_alike`]).
+    pub open_alike: Vec<[ErrorFunction; 2]>,
 }
 
 /// One piece of a penalised function: where its coefficients sit, the roughness matrix of the
@@ -224,6 +235,9 @@ pub(crate) struct Penalty {
     pub blocks: Vec<Block>,
     /// One smoothing parameter per group.
     pub lambda: Vec<f64>,
+    /// Pairs of functions open alike: told by the specification, then those the first REML round
+    /// merged ([`Smoothing::open_alike`]).
+    pub open_alike: Vec<[ErrorFunction; 2]>,
 }
 
 impl Penalty {
@@ -273,7 +287,7 @@ impl Penalty {
                 .collect(),
             None => vec![0.0; blocks.len()],
         };
-        Some(Penalty { blocks, lambda })
+        Some(Penalty { blocks, lambda, open_alike: spec.open_alike.clone() })
     }
 
     pub fn n_groups(&self) -> usize {
@@ -1270,6 +1284,7 @@ pub(crate) fn report(
         converged,
         edf_total: (n_free as f64 - prior_total).max(0.0),
         noise_scale,
+        open_alike: pen.open_alike.clone(),
     }
 }
 
