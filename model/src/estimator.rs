@@ -19,6 +19,7 @@
 
 use crate::beam::{fit_line, orient_with_readings};
 use crate::campaign::{LineGroup, ObsKind, Observations};
+use crate::functions::ErrorFunction;
 use crate::gauge::{self, Gauge, GAUGE_DIM};
 use crate::halves;
 use crate::identify::{self, Identifiability};
@@ -1314,12 +1315,12 @@ fn reml_round(
         let mut pairs = rp.overlapping_pairs();
         // Open alike: the pairs an earlier fit of these readings found (`Smoothing::open_alike`),
         // and those found here.
-        let group = |f: crate::functions::ErrorFunction| pen.blocks.iter().find(|b| b.function == f).map(|b| b.group);
-        let mut alike: Vec<(usize, usize)> = pen
-            .open_alike
-            .iter()
-            .filter_map(|&[a, b]| Some((group(a)?.min(group(b)?), group(a)?.max(group(b)?))))
-            .collect();
+        let group = |f: ErrorFunction| pen.blocks.iter().find(|b| b.function == f).map(|b| b.group);
+        let told = |&[a, b]: &[ErrorFunction; 2]| {
+            let (ga, gb) = (group(a)?, group(b)?);
+            Some((ga.min(gb), ga.max(gb)))
+        };
+        let mut alike: Vec<(usize, usize)> = pen.open_alike.iter().filter_map(told).collect();
         if let Some(tol) = log.open_to_prior {
             for found in open_alike(&m_data, &rp, pen, tol) {
                 if !alike.contains(&found) {
