@@ -218,6 +218,32 @@ impl RepresentationChoice {
                     f.shared_with.join(", ")
                 ));
             }
+            for pair in r.open_alike.iter().filter(|p| r.open_long_waves.iter().any(|w| w.pair == **p)) {
+                let raised: Vec<String> = r
+                    .open_long_waves
+                    .iter()
+                    .filter(|w| w.pair == *pair)
+                    .map(|w| {
+                        format!(
+                            "{} {:.2}",
+                            match w.degree {
+                                3 => "cubic".to_string(),
+                                5 => "quintic".to_string(),
+                                k => format!("degree {k}"),
+                            },
+                            w.after / w.before.max(f64::MIN_POSITIVE)
+                        )
+                    })
+                    .collect();
+                statements.push(format!(
+                    "{} and {}: the odd long waves of their difference, which no reading sees, are stated no smaller \
+                     than those the readings measure of the face diagonals' sums ({} times what the roughness prior \
+                     alone stated); measure the straightness of one of them to determine them.",
+                    pair[0].name(),
+                    pair[1].name(),
+                    raised.join(", ")
+                ));
+            }
             entries = r
                 .functions
                 .iter()

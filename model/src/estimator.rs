@@ -1128,7 +1128,7 @@ pub fn fit<'a>(
     let n_obs = prob.active_readings();
     // With smoothing, the curvature the prior determines is not fitted to the readings: the
     // effective number of parameters is the free dimension minus the prior's share.
-    let smoothing_report = prob.penalty.as_ref().map(|pen| {
+    let mut smoothing_report = prob.penalty.as_ref().map(|pen| {
         smoothing::report(
             pen,
             factor.llt.L(),
@@ -1160,7 +1160,23 @@ pub fn fit<'a>(
     });
 
     let n_u = layout.n_params;
-    let covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
+    let mut covariance = cov_full.submatrix(0, 0, n_u, n_u).to_owned();
+    // What the face diagonals' pairs leave open, no smaller than the readings' long waves of the
+    // same shapes (`open_pairs`): the roughness prior alone under-states it on smooth machines.
+    if let Some(pen) = prob.penalty.as_ref().filter(|p| reml_wanted && !p.open_alike.is_empty()) {
+        let n_data = assemble(&prob, &state).n;
+        let raised = crate::open_pairs::state_open_long_waves(
+            layout,
+            opts.gauge,
+            &pen.open_alike,
+            &state.d[..n_u],
+            n_data.submatrix(0, 0, n_u, n_u),
+            &mut covariance,
+        );
+        if let Some(r) = smoothing_report.as_mut() {
+            r.open_long_waves = raised;
+        }
+    }
     let stations_out = stations
         .iter()
         .enumerate()

@@ -38,6 +38,7 @@ pub mod misfit;
 pub mod model;
 mod normal;
 mod nullspace;
+pub mod open_pairs;
 pub mod path;
 pub mod predict;
 pub mod range;

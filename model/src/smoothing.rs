@@ -208,6 +208,9 @@ pub struct SmoothingReport {
     /// The pairs that share a smoothing parameter because the readings leave them open alike
     /// ([`Smoothing::open_alike`]).
     pub open_alike: Vec<[ErrorFunction; 2]>,
+    /// Where the stated uncertainty of what a face diagonal's pair leaves open was raised to the
+    /// long waves the readings measure of the pairs' sums ([`crate::open_pairs`]).
+    pub open_long_waves: Vec<crate::open_pairs::OpenLongWave>,
 }
 
 /// One piece of a penalised function: where its coefficients sit, the roughness matrix of the
@@ -1285,6 +1288,7 @@ pub(crate) fn report(
         edf_total: (n_free as f64 - prior_total).max(0.0),
         noise_scale,
         open_alike: pen.open_alike.clone(),
+        open_long_waves: Vec::new(),
     }
 }
 

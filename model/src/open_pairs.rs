@@ -1,0 +1,240 @@
+//! What a face diagonal's two straightnesses leave open, stated no smaller than what the
+//! readings measure of the same shapes.
+//!
+//! A beam along the diagonal of the face of axes P and Q reads `L_P EPQ + L_Q EQP` (P's error
+//! while Q moves, Q's while P moves, each weighted by its component's travel). The face's two
+//! diagonals together measure that sum and the even part of the difference; the odd part of
+//! the difference (about the middle of the travels: a cubic, a quintic, ...) no beam of such a
+//! plan sees. The smoothing states it from its roughness prior, whose strength REML takes from
+//! the detail the readings resolve. For a given detail that prior fixes how large the open long
+//! wave may be, and real errors need not follow it: over the independent simulator's smooth
+//! machines (length scales 0.3 to 1.0 of the travel) it stated a third to a half of the open
+//! cubic (docs/representation-auto.md, "Longer length scales").
+//!
+//! Here the two functions of a pair are taken as exchangeable (two guideways' straightness of
+//! one machine): the odd long wave of their difference is as large a priori as that of their
+//! sum, which the readings measure. Per odd degree, the sums' coefficients over every such pair
+//! give one scale (their mean square), and each pair's open coefficient is stated with at least
+//! the variance that scale gives a direction the readings do not see (less what the readings do
+//! see of it). The estimate is not moved: the open coefficient's mean is zero either way.
+
+use crate::functions::{ErrorFunction, Motion};
+use crate::gauge::{self, Gauge};
+use crate::model::ModelLayout;
+use faer::linalg::solvers::Solve;
+use faer::{Mat, MatRef};
+
+/// The odd Legendre degrees of a pair's difference stated from the sums: the cubic and the
+/// quintic. The linear one is the squareness's (in the gauge); beyond the quintic the open
+/// shapes are shorter than the smoothing's detail, which states them.
+pub const ODD_DEGREES: [usize; 2] = [3, 5];
+
+/// One open coefficient whose stated uncertainty was raised.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpenLongWave {
+    /// The pair (`EPQ`, `EQP`).
+    pub pair: [ErrorFunction; 2],
+    /// The Legendre degree of the coefficient.
+    pub degree: usize,
+    /// Standard uncertainty of the coefficient of `(L_P EPQ - L_Q EQP) / 2` before, m^2 units of
+    /// the weighted functions (m x m).
+    pub before: f64,
+    /// After: the sums' scale, less what the readings see of it.
+    pub after: f64,
+}
+
+/// Whether `pair` is a face diagonal's two straightnesses (`EPQ` and `EQP`).
+fn is_face_pair([a, b]: [ErrorFunction; 2]) -> bool {
+    a.motion == Motion::Translation
+        && b.motion == Motion::Translation
+        && a.component == b.axis
+        && b.component == a.axis
+        && a.axis != a.component
+}
+
+/// Legendre polynomial of degree `k` at `x` (Bonnet's recursion).
+fn legendre(k: usize, x: f64) -> f64 {
+    let (mut p0, mut p1) = (1.0, x);
+    if k == 0 {
+        return p0;
+    }
+    for n in 1..k {
+        let p2 = ((2 * n + 1) as f64 * x * p1 - n as f64 * p0) / (n + 1) as f64;
+        p0 = p1;
+        p1 = p2;
+    }
+    p1
+}
+
+/// Coefficient weights `g` with `g . c` = the Legendre coefficient of degree `k` of `f`'s
+/// function over its travel (`(2k + 1) / 2 int P_k(x) f dx`, `x` from -1 to 1).
+fn legendre_functional(layout: &ModelLayout, f: ErrorFunction, k: usize) -> Vec<f64> {
+    let b = layout.basis(f);
+    let (mid, half) = (0.5 * (b.lo + b.hi), 0.5 * b.length());
+    let mut g = vec![0.0; b.n_coeffs()];
+    for (q, w) in b.quadrature() {
+        let p = legendre(k, (q - mid) / half) * (2 * k + 1) as f64 / (2.0 * half);
+        for (i, v) in b.eval(q) {
+            g[i] += w * p * v;
+        }
+    }
+    g
+}
+
+/// Raises the stated uncertainty of what the readings leave open of each face diagonal's pair
+/// in `pairs` (module doc) in `cov` (the model's parameters, unscaled), from the estimate `u`
+/// and the readings' normal matrix `n_data` over the model's parameters. Returns what it
+/// raised; pairs that are not a face's straightnesses are left alone.
+pub fn state_open_long_waves(
+    layout: &ModelLayout,
+    gauge_kind: Gauge,
+    pairs: &[[ErrorFunction; 2]],
+    u: &[f64],
+    n_data: MatRef<'_, f64>,
+    cov: &mut Mat<f64>,
+) -> Vec<OpenLongWave> {
+    let pairs: Vec<[ErrorFunction; 2]> = pairs.iter().copied().filter(|&p| is_face_pair(p)).collect();
+    if pairs.is_empty() {
+        return Vec::new();
+    }
+    let n = layout.n_params;
+    // The gauge: a direction moved along its freedoms until it meets the constraints predicts
+    // every observable quantity as before (`d - G (C G)^-1 C d`).
+    let g = gauge::null_basis(layout);
+    let c = gauge::constraints(layout, gauge_kind);
+    let cg_lu = (&c * &g).partial_piv_lu();
+    let in_gauge = |d: Mat<f64>| -> Mat<f64> {
+        let alpha = cg_lu.solve(&c * &d);
+        &d - &g * alpha
+    };
+    let weight = |f: ErrorFunction| layout.travel.length(f.component);
+    let mut raised = Vec::new();
+    for k in ODD_DEGREES {
+        // Per pair: the functional of the difference's coefficient, the direction that moves it
+        // by one, and the sum's coefficient as estimated.
+        let mut per_pair = Vec::new();
+        for &[a, b] in &pairs {
+            let (la, lb) = (legendre_functional(layout, a, k), legendre_functional(layout, b, k));
+            let (wa, wb) = (weight(a), weight(b));
+            let shape = |f: ErrorFunction| {
+                let basis = layout.basis(f);
+                let (mid, half) = (0.5 * (basis.lo + basis.hi), 0.5 * basis.length());
+                basis.fit(|q| legendre(k, (q - mid) / half))
+            };
+            let (sa, sb) = (shape(a), shape(b));
+            let mut f = Mat::<f64>::zeros(n, 1);
+            let mut d = Mat::<f64>::zeros(n, 1);
+            let mut sum = 0.0;
+            for (i, r) in layout.range(a).enumerate() {
+                f[(r, 0)] = 0.5 * wa * la[i];
+                d[(r, 0)] = sa[i] / wa;
+                sum += 0.5 * wa * la[i] * u[r];
+            }
+            for (i, r) in layout.range(b).enumerate() {
+                f[(r, 0)] = -0.5 * wb * lb[i];
+                d[(r, 0)] = -sb[i] / wb;
+                sum += 0.5 * wb * lb[i] * u[r];
+            }
+            // A quintic is not quite a cubic spline: scale the direction to move the
+            // coefficient by exactly one.
+            let moved = (f.transpose() * &d)[(0, 0)];
+            if moved.abs() < 1e-6 {
+                continue;
+            }
+            let d = in_gauge(d * faer::Scale(1.0 / moved));
+            per_pair.push(([a, b], f, d, sum));
+        }
+        if per_pair.is_empty() {
+            continue;
+        }
+        let scale2 = per_pair.iter().map(|p| p.3 * p.3).sum::<f64>() / per_pair.len() as f64;
+        if !(scale2 > 0.0) {
+            continue;
+        }
+        for (pair, f, d, _) in per_pair {
+            let before = (f.transpose() * &*cov * &f)[(0, 0)].max(0.0);
+            let seen = (d.transpose() * n_data * &d)[(0, 0)].max(0.0);
+            let target = 1.0 / (seen + 1.0 / scale2);
+            if target > before {
+                let add = &d * d.transpose() * faer::Scale(target - before);
+                *cov += add;
+                raised.push(OpenLongWave { pair, degree: k, before: before.sqrt(), after: target.sqrt() });
+            }
+        }
+    }
+    // Symmetric to the bit, as the solve leaves it (untouched where nothing was raised).
+    for i in (0..n).filter(|_| !raised.is_empty()) {
+        for j in i + 1..n {
+            let v = cov[(i, j)];
+            cov[(j, i)] = v;
+        }
+    }
+    raised
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legendre_polynomials_and_their_coefficients() {
+        assert!((legendre(3, 0.5) - (2.5 * 0.125 - 1.5 * 0.5)).abs() < 1e-15);
+        assert!((legendre(5, 1.0) - 1.0).abs() < 1e-15);
+        let layout = ModelLayout::uniform(
+            crate::topology::Topology::parse("FXYZ").unwrap(),
+            crate::axis::Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            crate::repr::Representation::BSpline { intervals: 12 },
+        );
+        let f =
+            ErrorFunction { axis: crate::axis::Axis::Y, motion: Motion::Translation, component: crate::axis::Axis::X };
+        let b = layout.basis(f);
+        // 2 P3 + P1 on Y's travel: its cubic coefficient is 2, its linear one 1.
+        let c = b.fit(|q| {
+            let x = (q - 0.4) / 0.4;
+            2.0 * legendre(3, x) + x
+        });
+        let dot = |g: &[f64]| g.iter().zip(&c).map(|(a, b)| a * b).sum::<f64>();
+        assert!((dot(&legendre_functional(&layout, f, 3)) - 2.0).abs() < 1e-9);
+        assert!((dot(&legendre_functional(&layout, f, 1)) - 1.0).abs() < 1e-9);
+        assert!(dot(&legendre_functional(&layout, f, 5)).abs() < 1e-9);
+    }
+
+    /// A pair whose sum carries a cubic of known size, nothing seen by the readings: the open
+    /// cubic of the difference is stated with that size, in the gauge (the constraints hold for
+    /// every draw of the added covariance), and the quintic, which the sum lacks, is not raised.
+    #[test]
+    fn the_open_cubic_is_stated_as_large_as_the_measured_one() {
+        use crate::axis::Axis;
+        let layout = ModelLayout::uniform(
+            crate::topology::Topology::parse("FXYZ").unwrap(),
+            crate::axis::Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]),
+            crate::repr::Representation::BSpline { intervals: 12 },
+        );
+        let t = |axis, component| ErrorFunction { axis, motion: Motion::Translation, component };
+        let (exy, eyx) = (t(Axis::Y, Axis::X), t(Axis::X, Axis::Y));
+        // EXY = 2 um P3 over Y's travel: the sum (L_X EXY + L_Y EYX) / 2 has the cubic 1 um.
+        let mut u = vec![0.0; layout.n_params];
+        let b = layout.basis(exy);
+        let c = b.fit(|q| 2e-6 * legendre(3, (q - 0.4) / 0.4));
+        for (r, v) in layout.range(exy).zip(&c) {
+            u[r] = *v;
+        }
+        let n = layout.n_params;
+        let mut cov = Mat::<f64>::zeros(n, n);
+        let raised = state_open_long_waves(
+            &layout,
+            Gauge::Patent,
+            &[[eyx, exy]],
+            &u,
+            Mat::<f64>::zeros(n, n).as_ref(),
+            &mut cov,
+        );
+        assert_eq!(raised.len(), 1, "{raised:?}");
+        assert_eq!(raised[0].degree, 3);
+        assert!((raised[0].after - 1e-6).abs() < 1e-12, "{}", raised[0].after);
+        let cons = gauge::constraints(&layout, Gauge::Patent);
+        let moved = &cons * &cov;
+        let largest = (0..moved.nrows()).flat_map(|i| (0..n).map(move |j| (i, j))).map(|(i, j)| moved[(i, j)].abs());
+        assert!(largest.fold(0.0, f64::max) < 1e-24);
+    }
+}
