@@ -453,7 +453,7 @@ impl Basis {
 }
 
 /// Legendre polynomials `P_0..P_n` and their derivatives at `s` in `[-1, 1]`.
-fn legendre(n: usize, s: f64) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn legendre(n: usize, s: f64) -> (Vec<f64>, Vec<f64>) {
     let mut p = vec![0.0; n + 1];
     let mut dp = vec![0.0; n + 1];
     p[0] = 1.0;
