@@ -60,14 +60,18 @@ fn legendre(k: usize, x: f64) -> f64 {
     crate::repr::legendre(k, x).0[k]
 }
 
+/// `P_k` over `b`'s travel at `q` (the travel mapped onto -1 to 1).
+fn legendre_over(b: &crate::repr::Basis, k: usize, q: f64) -> f64 {
+    legendre(k, (q - 0.5 * (b.lo + b.hi)) / (0.5 * b.length()))
+}
+
 /// Coefficient weights `g` with `g . c` = the Legendre coefficient of degree `k` of `f`'s
 /// function over its travel (`(2k + 1) / 2 int P_k(x) f dx`, `x` from -1 to 1).
 fn legendre_functional(layout: &ModelLayout, f: ErrorFunction, k: usize) -> Vec<f64> {
     let b = layout.basis(f);
-    let (mid, half) = (0.5 * (b.lo + b.hi), 0.5 * b.length());
     let mut g = vec![0.0; b.n_coeffs()];
     for (q, w) in b.quadrature() {
-        let p = legendre(k, (q - mid) / half) * (2 * k + 1) as f64 / (2.0 * half);
+        let p = legendre_over(b, k, q) * (2 * k + 1) as f64 / b.length();
         for (i, v) in b.eval(q) {
             g[i] += w * p * v;
         }
@@ -112,8 +116,7 @@ pub fn state_open_long_waves(
             let (wa, wb) = (weight(a), weight(b));
             let shape = |f: ErrorFunction| {
                 let basis = layout.basis(f);
-                let (mid, half) = (0.5 * (basis.lo + basis.hi), 0.5 * basis.length());
-                basis.fit(|q| legendre(k, (q - mid) / half))
+                basis.fit(|q| legendre_over(basis, k, q))
             };
             let (sa, sb) = (shape(a), shape(b));
             let mut f = Mat::<f64>::zeros(n, 1);
