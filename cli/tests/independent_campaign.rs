@@ -491,8 +491,8 @@ fn beams_and_a_tracer_over_short_length_scales_are_predicted_within_their_uncert
 /// A smooth machine (length scales 0.3 to 0.6 of the travel): what the 45 beams leave open along
 /// a face diagonal (the odd long waves of EXY against EYX, and of the other two pairs) is larger
 /// for a given detail than the roughness prior allows. Until it was stated no smaller than the
-/// long waves the readings measure of the pairs' sums (`open_pairs`), seed 743's XY diagonal lay
-/// 2.9 um off under a stated 0.86 um (found by a study by hand over seeds 741-750, README).
+/// long waves the readings measure of the pairs (`open_pairs`), seed 743's XY diagonal lay 2.9 um
+/// off under a stated 0.86 um (found by a study by hand over seeds 741-750, README).
 /// Seeds 741-743; the bounds of the usual length scales.
 #[test]
 fn fixed_beams_on_a_smooth_machine_are_predicted_within_their_uncertainty() {

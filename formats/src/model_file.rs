@@ -237,8 +237,8 @@ impl RepresentationChoice {
                     .collect();
                 statements.push(format!(
                     "{} and {}: the odd long waves of their difference, which no reading sees, are stated no smaller \
-                     than those the readings measure of the face diagonals' sums ({} times what the roughness prior \
-                     alone stated); measure the straightness of one of them to determine them.",
+                     than the long waves of that order the readings measure of the face diagonals' pairs ({} times \
+                     what the roughness prior alone stated); measure the straightness of one of them to determine them.",
                     pair[0].name(),
                     pair[1].name(),
                     raised.join(", ")
