@@ -121,15 +121,19 @@ pub fn state_open_long_waves(
         let mut per_pair = Vec::new();
         let mut measured = Vec::new();
         for &[a, b] in &pairs {
-            for (j, sign) in [(k, 1.0), (k - 1, -1.0), (k + 1, -1.0)] {
-                let (la, lb) = (legendre_functional(layout, a, j), legendre_functional(layout, b, j));
-                let (wa, wb) = (weight(a), weight(b));
-                let of_a = layout.range(a).zip(&la).map(|(r, l)| l * u[r]).sum::<f64>();
-                let of_b = layout.range(b).zip(&lb).map(|(r, l)| l * u[r]).sum::<f64>();
-                measured.push(0.5 * (wa * of_a + sign * wb * of_b));
-            }
-            let (la, lb) = (legendre_functional(layout, a, k), legendre_functional(layout, b, k));
             let (wa, wb) = (weight(a), weight(b));
+            // The estimate's coefficient of the pair's lever-weighted sum (`sign` 1) or
+            // difference (-1), given the two functions' functionals of one degree.
+            let estimated = |la: &[f64], lb: &[f64], sign: f64| {
+                let of_a = layout.range(a).zip(la).map(|(r, l)| l * u[r]).sum::<f64>();
+                let of_b = layout.range(b).zip(lb).map(|(r, l)| l * u[r]).sum::<f64>();
+                0.5 * (wa * of_a + sign * wb * of_b)
+            };
+            let (la, lb) = (legendre_functional(layout, a, k), legendre_functional(layout, b, k));
+            measured.push(estimated(&la, &lb, 1.0));
+            for j in [k - 1, k + 1] {
+                measured.push(estimated(&legendre_functional(layout, a, j), &legendre_functional(layout, b, j), -1.0));
+            }
             let shape = |f: ErrorFunction| {
                 let basis = layout.basis(f);
                 basis.fit(|q| legendre_over(basis, k, q))
