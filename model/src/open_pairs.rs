@@ -22,9 +22,10 @@
 //!
 //! Why the neighbours: three sums alone are three draws, too few to estimate a variance. Over
 //! the independent simulator's machines (300 seeds per length-scale range, the truth's own
-//! coefficients) the sums' scale left 4 to 6 % of the open cubics beyond three times it; with
-//! the differences' even neighbours pooled in (nine draws, and the pair's own among them),
-//! 0.3 to 1.9 % (docs/representation-auto.md, "Nine measured long waves").
+//! coefficients, seeds 5000-5299 and 9000-9299) the sums' scale left 3.4 to 7.0 % of the open
+//! cubics beyond three times it; with the differences' even neighbours pooled in (nine draws,
+//! and the pair's own among them), 0.3 to 2.2 % (`tests/py/open_long_wave_probe.py`;
+//! docs/representation-auto.md, "Nine measured long waves").
 
 use crate::functions::{ErrorFunction, Motion};
 use crate::gauge::{self, Gauge};
@@ -32,7 +33,7 @@ use crate::model::ModelLayout;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef};
 
-/// The odd Legendre degrees of a pair's difference stated from the sums: the cubic and the
+/// The odd Legendre degrees of a pair's difference stated from the measured long waves: the cubic and the
 /// quintic. The linear one is the squareness's (in the gauge); higher degrees are left to the
 /// roughness prior. On the smooth machines where the prior states too little, the seventh's
 /// coefficients are small (RMS over the independent simulator's machines: 4 % of the cubic's
@@ -50,7 +51,7 @@ pub struct OpenLongWave {
     /// Standard uncertainty of the coefficient of `(L_P EPQ - L_Q EQP) / 2` before, in m x m (an
     /// error weighted by a travel).
     pub before: f64,
-    /// After: the sums' scale, less what the readings see of it.
+    /// After: the measured long waves' scale (module doc), less what the readings see of it.
     pub after: f64,
 }
 
