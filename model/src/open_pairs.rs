@@ -34,8 +34,8 @@ use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef};
 
 /// The odd Legendre degrees of a pair's difference stated from the measured long waves: the
-/// cubic and the quintic. The linear one is the squareness's (in the gauge); higher degrees are left to the
-/// roughness prior. On the smooth machines where the prior states too little, the seventh's
+/// cubic and the quintic. The linear one is the squareness's (in the gauge); higher degrees
+/// are left to the roughness prior. On the smooth machines where the prior states too little, the seventh's
 /// coefficients are small (RMS over the independent simulator's machines: 4 % of the cubic's
 /// with length scales 0.3 to 0.6 of the travel, 0.4 % with 0.5 to 1.0); where they are larger
 /// (30 % with 0.15 to 0.4), the prior states the open long waves amply.
