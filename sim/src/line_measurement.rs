@@ -30,7 +30,8 @@ impl LineMeasurement {
 }
 
 /// Measures `line` on `machine` with reflector offset `p`: `runs` bidirectional runs through
-/// `targets` (distances from the start), the counter zeroed at the start of each run. The
+/// `targets` (distances from the start), the beam aligned with the reflector's motion from the
+/// line's start to its end, the counter zeroed at the start of each run. The
 /// machine's repeatability and the interferometer's noise and resolution enter every reading.
 /// `controller` is what the machine's controller adds to its axes' commands (a compensation,
 /// [`crate::controller`]): empty for the machine as it is, the compensation's tables for the
@@ -48,7 +49,10 @@ pub fn measure_line<R: Rng + ?Sized>(
     controller: &[&dyn Injection],
     rng: &mut R,
 ) -> LineMeasurement {
-    let n = line.direction();
+    // The beam as it is set up: aligned with the reflector's motion, through its actual
+    // positions at the line's start and end (`volcal::validate`'s module doc).
+    let beam = machine.exact(&line.end, p) - machine.exact(&line.start, p);
+    let n = beam / beam.norm();
     let air = Air::standard();
     let runs = runs.max(1);
     let mut sums: Vec<Vec<f64>> = vec![Vec::with_capacity(2 * runs); targets.len()];
