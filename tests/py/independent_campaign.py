@@ -324,7 +324,11 @@ def relinearised(machine, seen, ranges, targets, predicted, posterior):
         # What the nominal linearisation leaves out of each range, `|e_hat|^2 / r` at most: at the
         # usual errors a nanometre or two, below a tenth of the tracer's noise, and the oracle
         # stands as it is; at ten times the errors a tenth of a micrometre.
-        left_out = max((np.max(np.sum(posterior.error(seen[k][0], seen[k][1]) ** 2, axis=1) / np.linalg.norm(seen[k][0] - q, axis=1)) for k, q, _ in ranges), default=0.0)
+        left_out = 0.0
+        for k, q, _ in ranges:
+            x, p = seen[k][0], seen[k][1]
+            squared = np.sum(posterior.error(x, p) ** 2, axis=1)
+            left_out = max(left_out, np.max(squared / np.linalg.norm(x + p - q, axis=1)))
         if left_out < 0.1 * TRACER_M:
             break
         for k, q, l in ranges:
