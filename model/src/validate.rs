@@ -141,7 +141,7 @@ pub fn predict_positioning(
     targets: &[f64],
 ) -> Vec<PositioningPoint> {
     let n = line.direction();
-    let actual = |y: &Point3<f64>| y + p + model.error(y, p);
+    let actual = |y: &Point3<f64>| model.exact_position(y, p);
     let (p_start, p_end) = (actual(&line.start), actual(&line.end));
     let beam = p_end - p_start;
     let n_beam = beam / beam.norm();

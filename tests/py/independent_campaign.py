@@ -321,19 +321,19 @@ def relinearised(machine, seen, ranges, targets, predicted, posterior):
     reading less `|X + p + e_hat - S| - n . e_hat`). At the usual errors the nominal linearisation
     is already this; at thirty times them (a millimetre) it is off by a micrometre."""
     for _ in range(8):
+        # The posterior's errors at each track's points, once per round.
+        e_hats = [posterior.error(seen[k][0], seen[k][1]) for k, _, _ in ranges]
         # What the nominal linearisation leaves out of each range, `|e_hat|^2 / r` at most: at the
         # usual errors a nanometre or two, below a tenth of the tracer's noise, and the oracle
         # stands as it is; at ten times the errors a tenth of a micrometre.
         left_out = 0.0
-        for k, q, _ in ranges:
+        for (k, q, _), e_hat in zip(ranges, e_hats):
             x, p = seen[k][0], seen[k][1]
-            squared = np.sum(posterior.error(x, p) ** 2, axis=1)
-            left_out = max(left_out, np.max(squared / np.linalg.norm(x + p - q, axis=1)))
+            left_out = max(left_out, np.max(np.sum(e_hat**2, axis=1) / np.linalg.norm(x + p - q, axis=1)))
         if left_out < 0.1 * TRACER_M:
             break
-        for k, q, l in ranges:
+        for (k, q, l), e_hat in zip(ranges, e_hats):
             x, p, _, _, group, var = seen[k]
-            e_hat = posterior.error(x, p)
             v = x + p + e_hat - q
             r = np.linalg.norm(v, axis=1)
             n = v / r[:, None]
