@@ -382,3 +382,46 @@ fn tables_where_the_readings_show_kinks_at_equal_spacing() {
     let knots = model["representation_choice"]["knots"].as_array().expect("knots");
     assert!(knots.iter().all(|k| k.get("table").is_none()), "{knots:?}");
 }
+
+/// The beams' alignment (`volcal::alignment`): the patent's campaign, whose simulated beams
+/// follow the reflector's motion at a CMM's usual errors, leaves nothing to cover (the two
+/// alignments' readings differ by far less than their noise, and the model is the one a
+/// statement of either gives); the model file records what was assumed and whether it was
+/// stated; a value that is neither is an error that names the field.
+#[test]
+fn the_beams_alignment_is_recorded_and_covered_only_where_it_matters() {
+    let d = scratch("alignment");
+    let c = campaign(&d);
+    let head = std::fs::read_to_string(machine()).unwrap();
+    let solve = |name: &str, extra: &str| -> (Output, PathBuf) {
+        let m = d.join(format!("{name}.yaml"));
+        std::fs::write(&m, format!("{head}\n{extra}")).unwrap();
+        let model = d.join(format!("{name}.json"));
+        let o =
+            volcal(&["solve", c.to_str().unwrap(), "--machine", m.to_str().unwrap(), "--out", model.to_str().unwrap()]);
+        (o, model)
+    };
+    let read = |p: &Path| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap() };
+    let (o, unstated) = solve("unstated", "");
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("aligned with"), "{}", text(&o));
+    let a = read(&unstated)["beam_alignment"].clone();
+    assert_eq!(a["aligned_with"], "motion", "{a}");
+    assert_eq!(a["stated"], false, "{a}");
+    let sep = a["separation"].as_f64().unwrap();
+    assert!(sep > 0.0 && sep < volcal::alignment::NEGLIGIBLE_SEPARATION, "{a}");
+    let (o, motion) = solve("motion", "beam_alignment: motion\n");
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(read(&motion)["beam_alignment"]["stated"], true);
+    // Nothing covered: the same coefficients and covariance as when stated.
+    for key in ["functions", "squareness", "covariance"] {
+        assert_eq!(read(&unstated)[key], read(&motion)[key], "{key}");
+    }
+    let (o, commanded) = solve("commanded", "beam_alignment: commanded\n");
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(read(&commanded)["beam_alignment"]["aligned_with"], "commanded");
+    let (o, _) = solve("bad", "beam_alignment: sideways\n");
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(t.contains("beam_alignment") && t.contains("sideways") && !t.contains("panicked"), "{t}");
+}

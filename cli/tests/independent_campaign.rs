@@ -20,7 +20,7 @@
 //! volumetric map's error over the volume with the gauge removed ([`MapError`]): `volcal map`
 //! against the map of the oracle's posterior-mean machine, on the same grid.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const SEEDS: std::ops::Range<u64> = 101..107;
@@ -413,8 +413,8 @@ fn predicted_within_uncertainty_on(
     seeds: std::ops::Range<u64>,
     machine: &[String],
     calibrated: bool,
-) {
-    let Some(py) = volcal_tests::checker_python() else { return };
+) -> Option<PathBuf> {
+    let Some(py) = volcal_tests::checker_python() else { return None };
     let dir = volcal_tests::scratch(&format!(
         "independent-{method}-{topology}{}-{}-{}",
         machine.concat(),
@@ -430,6 +430,7 @@ fn predicted_within_uncertainty_on(
     let n_seeds = seeds.count();
     print_map_error(label, &map, n_seeds);
     check(label, &targets, n_seeds * lines * 10, n_seeds, calibrated);
+    Some(dir)
 }
 
 /// The map's error against the oracle's, pooled over the seeds (measured, not bound).
@@ -471,6 +472,37 @@ fn fixed_beams_on_a_machine_ten_times_as_wrong_are_predicted_within_their_uncert
     let ten = ["--amplitude".to_string(), "10".to_string()];
     let label = "fixed beams, FXYZ, ten times the errors";
     predicted_within_uncertainty_on(label, "beams", "FXYZ", DEMO_TRAVEL, 27, 701..704, &ten, false);
+}
+
+/// A machine thirty times as wrong (300 um of positioning, 120 um of straightness, 240 urad of
+/// rotations: a large gantry robot). The independent simulator points each beam along its
+/// commanded line and the machine drifts across it by hundreds of micrometres; volcal takes the
+/// beams along the reflector's motion (the patent's procedure), and the two differ by a cosine
+/// error that the readings cannot tell from the machine's positioning errors. Until the solve
+/// covered the other alignment in its uncertainty where the machine file does not state one
+/// (`volcal::alignment`), seeds 821-830 lay up to 5.02 standard uncertainties off, 37 of 2 700
+/// beyond 3 (README, "On data we did not simulate"). Seeds 871-873, run once before this test
+/// was written and never tuned against; the bounds on far deviations as at the usual magnitude,
+/// the RMS not bound (the face diagonals over-stated, as at ten times). Every model says the
+/// alignment was not stated and what covering it changed.
+#[test]
+fn fixed_beams_on_a_machine_thirty_times_as_wrong_are_predicted_within_their_uncertainty() {
+    let thirty = ["--amplitude".to_string(), "30".to_string()];
+    let label = "fixed beams, FXYZ, thirty times the errors";
+    let Some(dir) = predicted_within_uncertainty_on(label, "beams", "FXYZ", DEMO_TRAVEL, 27, 871..874, &thirty, false)
+    else {
+        return;
+    };
+    for seed in 871..874 {
+        let model = dir.join(format!("beams-{seed}/model.json"));
+        let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&model).unwrap()).unwrap();
+        let a = &m["beam_alignment"];
+        assert_eq!(a["stated"], false, "seed {seed}: {a}");
+        assert!(a["separation"].as_f64().unwrap() > volcal::alignment::NEGLIGIBLE_SEPARATION, "seed {seed}: {a}");
+        assert!(a["largest_change_m"].as_f64().unwrap() > 0.0, "seed {seed}: {a}");
+        let warned = m["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("beam_alignment"));
+        assert!(warned, "seed {seed}: no warning on the beams' alignment");
+    }
 }
 
 /// The beams and the tracer together over errors of short length scales (0.06 to 0.15 of the

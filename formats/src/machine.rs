@@ -13,6 +13,8 @@
 //! gauge: patent                       # or datum
 //! noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_m: 1.0e-7, tracer_ppm: 0.2}
 //! expansion: {x: 11.5e-6, y: 11.5e-6, z: 11.5e-6}          # ISO 1 normalisation (1/K)
+//! beam_alignment: motion              # or commanded: what the fixed beams were aligned with; when
+//!                                     # not stated, the uncertainty covers both (volcal::alignment)
 //! simulation: {...}                   # virtual machine for `volcal simulate`
 //! ```
 
@@ -20,6 +22,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
 use std::path::Path;
+use volcal::beam::BeamAlignment;
 use volcal::campaign::{Observations, ScaleExpansion};
 use volcal::estimator::{Solution, SolveError};
 use volcal::flexibility::{solve_auto, Auto, AxisKnots};
@@ -188,6 +191,10 @@ pub struct MachineFile {
     pub noise: Option<NoiseModel>,
     #[serde(default)]
     pub expansion: Option<ExpansionSpec>,
+    /// What the campaign's fixed beams were aligned with; `None`: not stated, the estimate is
+    /// along the motion and its uncertainty covers the commanded line ([`volcal::alignment`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_alignment: Option<BeamAlignment>,
     #[serde(default)]
     pub simulation: SimulationSpec,
 }
@@ -296,7 +303,12 @@ impl Machine {
     /// Solver options implied by the machine file, for its own layout (without smoothing: use
     /// [`Machine::setup_for`] to fit a campaign).
     pub fn solve_options(&self) -> SolveOptions {
-        SolveOptions { gauge: self.gauge, noise: self.noise, ..SolveOptions::default() }
+        SolveOptions {
+            gauge: self.gauge,
+            noise: self.noise,
+            beam_alignment: self.file.beam_alignment.unwrap_or_default(),
+            ..SolveOptions::default()
+        }
     }
 
     /// The layout and solver options to fit `obs` with: the file's representation, or with

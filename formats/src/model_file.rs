@@ -348,6 +348,23 @@ impl PackedSym {
     }
 }
 
+/// What a campaign's fixed beams were taken as aligned with ([`volcal::alignment`]).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct BeamAlignmentEntry {
+    /// The alignment of the estimate.
+    pub aligned_with: volcal::beam::BeamAlignment,
+    /// Whether the machine file stated it; when not, the covariance covers the other alignment
+    /// too (when it matters: `separation` above [`volcal::alignment::NEGLIGIBLE_SEPARATION`]).
+    pub stated: bool,
+    /// [`volcal::alignment::separation`]: how far apart the two alignments' predictions of the
+    /// readings lie, in units of their noise, as a whole.
+    pub separation: f64,
+    /// Largest change of a volumetric error component between the two alignments' models
+    /// (metres), where the uncertainty covers it; zero otherwise.
+    #[serde(default)]
+    pub largest_change_m: f64,
+}
+
 /// The model file.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ModelFile {
@@ -368,6 +385,9 @@ pub struct ModelFile {
     /// With `representation: auto`: how the representation was chosen.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub representation_choice: Option<RepresentationChoice>,
+    /// Campaigns with fixed beams: what the beams were taken as aligned with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_alignment: Option<BeamAlignmentEntry>,
     /// Directions of the coefficients the data leave undetermined beyond the gauge (each an
     /// array of `n_params` values; orthonormal). A prediction that depends on them is not
     /// determined by the data ([`volcal::predict::Uncertainty`]).
@@ -554,6 +574,7 @@ impl ModelFile {
             identifiability: IdentifiabilityEntry::default(),
             warnings: Vec::new(),
             representation_choice: None,
+            beam_alignment: None,
             undetermined: Vec::new(),
             measured_positions: Vec::new(),
             provenance,

@@ -3,14 +3,14 @@
 //! printed summary, the comparison with a simulation truth.
 
 use crate::machine::Machine;
-use crate::model_file::{ModelFile, Provenance, RepresentationChoice};
+use crate::model_file::{BeamAlignmentEntry, ModelFile, Provenance, RepresentationChoice};
 use crate::report;
 use anyhow::Result;
 use nalgebra::Vector3;
 use volcal::campaign::{prepare, Campaign, Prepared};
 use volcal::estimator::Solution;
 use volcal::predict::{self, Uncertainty};
-use volcal::{gauge, solve, ErrorModel};
+use volcal::{alignment, gauge, solve, ErrorModel, ObsKind, SolveOptions};
 
 /// A solved campaign.
 pub struct Solved {
@@ -31,10 +31,41 @@ pub fn solve_campaign(campaign: &Campaign, machine: Machine, source: &str, prove
             solve(&setup.layout, &prepared.obs, &setup.options, &[]).map_err(|e| anyhow::anyhow!("{source}: {e}"))?
         }
     };
+    let (solution, beam_alignment) = beam_alignment(&machine, &prepared, &setup.options, solution, source)?;
     let mut file = ModelFile::from_solution(&solution, &prepared.obs.groups, provenance);
     file.representation_choice =
         setup.knots.as_ref().map(|k| RepresentationChoice::new(k, solution.smoothing.as_ref()));
+    file.beam_alignment = beam_alignment;
     Ok(Solved { machine, prepared, solution, file })
+}
+
+/// With fixed beams: the solution with its uncertainty covering the other beam alignment when
+/// the machine file does not state one ([`alignment::cover`]), and what the model file records.
+fn beam_alignment(
+    machine: &Machine,
+    prepared: &Prepared,
+    options: &SolveOptions,
+    solution: Solution,
+    source: &str,
+) -> Result<(Solution, Option<BeamAlignmentEntry>)> {
+    if !prepared.obs.groups.iter().any(|g| g.kind == ObsKind::Beam) {
+        return Ok((solution, None));
+    }
+    let aligned_with = options.beam_alignment;
+    if machine.file.beam_alignment.is_some() {
+        let separation = alignment::separation(&solution, &prepared.obs);
+        let entry = BeamAlignmentEntry { aligned_with, stated: true, separation, largest_change_m: 0.0 };
+        return Ok((solution, Some(entry)));
+    }
+    let (solution, c) =
+        alignment::cover(&prepared.obs, options, solution).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let entry = BeamAlignmentEntry {
+        aligned_with,
+        stated: false,
+        separation: c.separation,
+        largest_change_m: c.largest_change_m,
+    };
+    Ok((solution, Some(entry)))
 }
 
 /// The observations of a campaign for `machine`, its warnings printed with `source` (the file

@@ -3,6 +3,36 @@
 
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
+/// What a fixed beam is aligned with, which the readings themselves cannot tell: the two differ
+/// only by the cosine of the angle between the commanded line and the reflector's actual motion
+/// (second order in the machine's errors), as a beam scale that the model's own positioning
+/// errors absorb (`crate::alignment`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum BeamAlignment {
+    /// Along the reflector's actual motion: the patent's procedure (the machine moves the
+    /// reflector along the beam), or an operator who aligned the beam with the line's motion.
+    /// The beam is the least-squares line of the actual reflector points.
+    #[default]
+    Motion,
+    /// Along the commanded line: the machine runs its commanded straight line and the beam was
+    /// pointed along it (e.g. by a deflector set from the machine's coordinates), so the
+    /// reflector drifts across the beam with the machine's errors. The beam is the
+    /// least-squares line of the commanded reflector points.
+    Commanded,
+}
+
+impl BeamAlignment {
+    /// Its name in machine files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            BeamAlignment::Motion => "motion",
+            BeamAlignment::Commanded => "commanded",
+        }
+    }
+}
+
 /// Least-squares line through a set of points.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineFit {

@@ -17,7 +17,7 @@
 //! constraints (QR), the Cholesky solve and the eigen-decomposition for identifiability are
 //! faer's, in sequential mode so the result is bit-identical run to run.
 
-use crate::beam::{fit_line, orient_with_readings};
+use crate::beam::{fit_line, orient_with_readings, BeamAlignment};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::functions::ErrorFunction;
 use crate::gauge::{self, Gauge, GAUGE_DIM};
@@ -100,6 +100,9 @@ pub struct SolveOptions {
     /// Roughness penalties on the error functions, their strength estimated by REML or fixed
     /// ([`crate::smoothing`]; `representation: auto` sets this); none when `None`.
     pub smoothing: Option<Smoothing>,
+    /// What each fixed beam is aligned with: the reflector's motion (the patent's procedure,
+    /// the default) or the commanded line ([`BeamAlignment`]).
+    pub beam_alignment: BeamAlignment,
 }
 
 impl Default for SolveOptions {
@@ -115,6 +118,7 @@ impl Default for SolveOptions {
             group_mask: None,
             initial_model: None,
             smoothing: None,
+            beam_alignment: BeamAlignment::Motion,
         }
     }
 }
@@ -326,6 +330,7 @@ struct Problem<'a> {
     active: Vec<bool>,
     /// Roughness penalty on the model coefficients (smoothing), with its current parameters.
     penalty: Option<Penalty>,
+    beam_alignment: BeamAlignment,
 }
 
 impl Problem<'_> {
@@ -951,6 +956,7 @@ pub fn fit<'a>(
         sigma,
         structure,
         penalty,
+        beam_alignment: opts.beam_alignment,
     };
     let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
@@ -1712,7 +1718,8 @@ fn actual_point(_p: &Problem<'_>, s: &State, i: usize) -> Point3<f64> {
 
 /// Recomputes the actual reflector positions by the exact kinematic chain (the small-angle
 /// sensitivity serves as the Jacobian only) and re-estimates the beam directions from them
-/// (patent: the least-squares line of the machine points).
+/// (patent: the least-squares line of the machine points), or, for beams aligned with the
+/// commanded line, takes the least-squares line of the commanded reflector points.
 fn update_directions(p: &Problem<'_>, s: &mut State) {
     let chain = crate::kinematics::Chain::new(p.layout, &s.d[..p.dims.n_u]);
     let (actual, frames): (Vec<_>, Vec<_>) = (0..p.obs.len())
@@ -1738,7 +1745,13 @@ fn update_directions(p: &Problem<'_>, s: &mut State) {
         for &k in &members {
             let gk = &p.obs.groups[k];
             // Readings of different segments have different origins: centre each segment.
-            let seg_pts: Vec<Point3<f64>> = gk.range().map(|i| actual_point(p, s, i)).collect();
+            let seg_pts: Vec<Point3<f64>> = gk
+                .range()
+                .map(|i| match p.beam_alignment {
+                    BeamAlignment::Motion => actual_point(p, s, i),
+                    BeamAlignment::Commanded => p.obs.x[i] + p.obs.p[i],
+                })
+                .collect();
             let lm = p.obs.l[gk.range()].iter().sum::<f64>() / gk.len() as f64;
             let c = seg_pts.iter().map(|q| q.coords).sum::<Vector3<f64>>() / gk.len() as f64;
             for (j, i) in gk.range().enumerate() {
@@ -2241,6 +2254,7 @@ mod tests {
             ref_energy: Vec::new(),
             active: vec![true; obs.groups.len()],
             penalty: None,
+            beam_alignment: BeamAlignment::Motion,
         };
         assert!(prob.structure.is_some());
         let mut st = State {
@@ -2338,6 +2352,7 @@ mod tests {
             ref_energy: Vec::new(),
             active: vec![true; obs.groups.len()],
             penalty: None,
+            beam_alignment: BeamAlignment::Motion,
         };
         assert!(prob.structure.is_some());
         let n = prob.dims.n();

@@ -20,6 +20,7 @@
 //! - [`predict`] turns a model and covariance into volumetric errors with uncertainty, maps,
 //!   maxima and compensation tables.
 
+pub mod alignment;
 pub mod axis;
 pub mod band;
 pub mod beam;

@@ -1,0 +1,174 @@
+//! What the fixed beams' alignment leaves open, when the campaign does not say it.
+//!
+//! A fixed beam reads the reflector's displacement along the beam, `n . (P_i - P_mean)`. The
+//! patent takes `n` as the least-squares line of the reflector's actual points (the machine
+//! moves the reflector along the beam: [`BeamAlignment::Motion`]); a campaign whose machine ran
+//! its commanded straight lines along beams pointed at them has `n` along the commanded line
+//! instead ([`BeamAlignment::Commanded`]). The two differ by the angle `a` between the
+//! commanded line and the actual motion, the errors' mean slope across the beam: the readings
+//! differ by the cosine error `-a^2 s / 2` and by `a` times the drift across the beam, both of
+//! second order in the machine's errors. A beam scale of that kind is what the model's own
+//! positioning errors absorb, so the readings do not tell the alignments apart (at thirty times
+//! a CMM's usual errors the fits' chi-square differ by half a percent, the maps by micrometres:
+//! docs/representation-auto.md, "The beams' alignment").
+//!
+//! [`cover`] therefore keeps the estimate of the stated or default alignment and, where the
+//! other one would move the model by more than a tenth of its uncertainty somewhere, refits
+//! with the other and adds the difference to the covariance: a rectangular distribution from
+//! the estimate to the other alignment's model, variance `d d^T / 3`. At a CMM's usual errors
+//! the two alignments' readings differ by nanometres and nothing changes.
+
+use crate::beam::{fit_line, BeamAlignment};
+use crate::campaign::{ObsKind, Observations};
+use crate::estimator::{solve, Solution, SolveError, SolveOptions};
+use crate::kinematics::exact_position;
+use crate::smoothing::Smoothing;
+use nalgebra::{Point3, Vector3};
+
+/// The separation below which [`cover`] leaves a solution as it is: no derived quantity can
+/// move by more than this many of its standard uncertainties.
+pub const NEGLIGIBLE_SEPARATION: f64 = 0.1;
+
+/// How far apart the readings' predictions of the two alignments lie at `solution`, as a
+/// whole: `sqrt(sum_i (dl_i / sigma_i)^2)` over the beam readings, `dl_i` the change of reading
+/// `i` (its line's origin eliminated) when the beams' directions are taken from the commanded
+/// points instead of the actual ones (or the reverse), `sigma_i` its noise.
+///
+/// It bounds what the other alignment does to any quantity derived from the model: to first
+/// order the change of the estimate is the fit's response to readings changed by `dl`, and by
+/// Cauchy-Schwarz that moves a quantity by at most this separation times its standard
+/// uncertainty. Zero without beams.
+pub fn separation(solution: &Solution, obs: &Observations) -> f64 {
+    let mut sum = 0.0;
+    for (_, groups) in beam_lines(obs) {
+        let actual: Vec<Vec<Point3<f64>>> = groups
+            .iter()
+            .map(|&g| obs.groups[g].range().map(|i| exact_position(&solution.model, &obs.x[i], &obs.p[i])).collect())
+            .collect();
+        let commanded: Vec<Vec<Point3<f64>>> =
+            groups.iter().map(|&g| obs.groups[g].range().map(|i| obs.x[i] + obs.p[i]).collect()).collect();
+        let along = |pts: &[Vec<Point3<f64>>]| fit_line(&centred(pts)).direction;
+        let (n_motion, mut n_commanded) = (along(&actual), along(&commanded));
+        if n_commanded.dot(&n_motion) < 0.0 {
+            n_commanded = -n_commanded;
+        }
+        let dn = n_commanded - n_motion;
+        for (k, &g) in groups.iter().enumerate() {
+            let c = mean(&actual[k]);
+            for (j, i) in obs.groups[g].range().enumerate() {
+                sum += (dn.dot(&(actual[k][j].coords - c)) / solution.sigmas[i]).powi(2);
+            }
+        }
+    }
+    sum.sqrt()
+}
+
+/// What [`cover`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Covered {
+    /// [`separation`] at the estimate.
+    pub separation: f64,
+    /// Largest change of a volumetric error component (metres) between the two alignments'
+    /// models, over a 5 x 5 x 5 grid of the travel with the probe at the tool; zero when the
+    /// separation was negligible and no refit was made.
+    pub largest_change_m: f64,
+}
+
+/// A solution whose uncertainty covers the other beam alignment than `opts.beam_alignment`,
+/// for a campaign that does not say which one its beams had (see the module's documentation):
+/// unchanged where the [`separation`] is below [`NEGLIGIBLE_SEPARATION`]; otherwise refitted
+/// with the other alignment (same layout, smoothing held, started from the estimate), the
+/// difference `d` of the coefficients added to the covariance as `d d^T / 3`, and a warning
+/// that says by how much and what to state.
+///
+/// # Errors
+/// When the refit fails ([`solve`]'s errors).
+pub fn cover(
+    obs: &Observations,
+    opts: &SolveOptions,
+    mut solution: Solution,
+) -> Result<(Solution, Covered), SolveError> {
+    let separation = separation(&solution, obs);
+    if separation <= NEGLIGIBLE_SEPARATION {
+        return Ok((solution, Covered { separation, largest_change_m: 0.0 }));
+    }
+    let other = match opts.beam_alignment {
+        BeamAlignment::Motion => BeamAlignment::Commanded,
+        BeamAlignment::Commanded => BeamAlignment::Motion,
+    };
+    let o = SolveOptions {
+        beam_alignment: other,
+        smoothing: solution.smoothing.as_ref().map(Smoothing::fixed_from).or_else(|| opts.smoothing.clone()),
+        initial_model: Some(solution.model.u.clone()),
+        ..opts.clone()
+    };
+    let refit = solve(&solution.model.layout, obs, &o, &[])?;
+    let d: Vec<f64> = refit.model.u.iter().zip(&solution.model.u).map(|(a, b)| a - b).collect();
+    let n = d.len();
+    for i in 0..n {
+        for j in 0..n {
+            solution.covariance[(i, j)] += d[i] * d[j] / 3.0;
+        }
+    }
+    let largest_change_m = largest_change(&solution, &refit);
+    solution.warnings.push(format!(
+        "the campaign does not say what its beams were aligned with (machine file: beam_alignment): along the \
+         commanded line instead of the reflector's motion ({} here), the readings' prediction moves by {:.1} times \
+         their noise as a whole and the map by up to {:.2} um. The readings cannot tell the two apart (a cosine \
+         error, second order in the machine's errors), so the uncertainty includes the difference; state \
+         `beam_alignment: motion` or `beam_alignment: commanded` to remove it",
+        opts.beam_alignment.name(),
+        separation,
+        largest_change_m * 1e6
+    ));
+    Ok((solution, Covered { separation, largest_change_m }))
+}
+
+/// The beam lines of `obs`: the groups (segments) of each station's beam, in order.
+fn beam_lines(obs: &Observations) -> Vec<((u32, u32), Vec<usize>)> {
+    let mut lines: Vec<((u32, u32), Vec<usize>)> = Vec::new();
+    for (gi, g) in obs.groups.iter().enumerate().filter(|(_, g)| g.kind == ObsKind::Beam) {
+        let key = (g.station, g.line);
+        match lines.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, v)) => v.push(gi),
+            None => lines.push((key, vec![gi])),
+        }
+    }
+    lines
+}
+
+/// Barycentre of some points.
+fn mean(pts: &[Point3<f64>]) -> Vector3<f64> {
+    pts.iter().map(|q| q.coords).sum::<Vector3<f64>>() / pts.len().max(1) as f64
+}
+
+/// The segments' points, each about its own barycentre (segments have different origins).
+fn centred(segments: &[Vec<Point3<f64>>]) -> Vec<Point3<f64>> {
+    segments
+        .iter()
+        .flat_map(|s| {
+            let c = mean(s);
+            s.iter().map(move |q| Point3::from(q.coords - c))
+        })
+        .collect()
+}
+
+/// Largest change of an error component between two models over a 5 x 5 x 5 grid of the travel.
+fn largest_change(a: &Solution, b: &Solution) -> f64 {
+    let travel = a.model.layout.travel;
+    let at = |ax: usize, k: usize| {
+        let [lo, hi] = travel.range(crate::axis::Axis::ALL[ax]);
+        lo + (hi - lo) * k as f64 / 4.0
+    };
+    let mut largest = 0.0_f64;
+    for i in 0..5 {
+        for j in 0..5 {
+            for k in 0..5 {
+                let x = Point3::new(at(0, i), at(1, j), at(2, k));
+                let d = a.model.error_linear(&x, &Vector3::zeros()) - b.model.error_linear(&x, &Vector3::zeros());
+                largest = largest.max(d.amax());
+            }
+        }
+    }
+    largest
+}
