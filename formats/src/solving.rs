@@ -53,7 +53,7 @@ fn beam_alignment(
     }
     let aligned_with = options.beam_alignment;
     if machine.file.beam_alignment.is_some() {
-        let separation = alignment::separation(&solution, &prepared.obs);
+        let separation = alignment::separation(&solution.model, &solution.sigmas, &prepared.obs);
         let entry = BeamAlignmentEntry { aligned_with, stated: true, separation, largest_change_m: 0.0 };
         return Ok((solution, Some(entry)));
     }

@@ -22,6 +22,7 @@ use crate::beam::{fit_line, BeamAlignment};
 use crate::campaign::{ObsKind, Observations};
 use crate::estimator::{solve, Solution, SolveError, SolveOptions};
 use crate::kinematics::exact_position;
+use crate::model::ErrorModel;
 use crate::smoothing::Smoothing;
 use nalgebra::{Point3, Vector3};
 
@@ -29,21 +30,22 @@ use nalgebra::{Point3, Vector3};
 /// move by more than this many of its standard uncertainties.
 pub const NEGLIGIBLE_SEPARATION: f64 = 0.1;
 
-/// How far apart the readings' predictions of the two alignments lie at `solution`, as a
+/// How far apart the readings' predictions of the two alignments lie for `model`, as a
 /// whole: `sqrt(sum_i (dl_i / sigma_i)^2)` over the beam readings, `dl_i` the change of reading
 /// `i` (its line's origin eliminated) when the beams' directions are taken from the commanded
-/// points instead of the actual ones (or the reverse), `sigma_i` its noise.
+/// points instead of the actual ones (or the reverse), `sigma_i` its noise (`sigmas`, one per
+/// reading of `obs`, e.g. [`Solution::sigmas`]).
 ///
 /// It bounds what the other alignment does to any quantity derived from the model: to first
 /// order the change of the estimate is the fit's response to readings changed by `dl`, and by
 /// Cauchy-Schwarz that moves a quantity by at most this separation times its standard
 /// uncertainty. Zero without beams.
-pub fn separation(solution: &Solution, obs: &Observations) -> f64 {
+pub fn separation(model: &ErrorModel, sigmas: &[f64], obs: &Observations) -> f64 {
     let mut sum = 0.0;
     for (_, groups) in beam_lines(obs) {
         let actual: Vec<Vec<Point3<f64>>> = groups
             .iter()
-            .map(|&g| obs.groups[g].range().map(|i| exact_position(&solution.model, &obs.x[i], &obs.p[i])).collect())
+            .map(|&g| obs.groups[g].range().map(|i| exact_position(model, &obs.x[i], &obs.p[i])).collect())
             .collect();
         let commanded: Vec<Vec<Point3<f64>>> =
             groups.iter().map(|&g| obs.groups[g].range().map(|i| obs.x[i] + obs.p[i]).collect()).collect();
@@ -56,7 +58,7 @@ pub fn separation(solution: &Solution, obs: &Observations) -> f64 {
         for (k, &g) in groups.iter().enumerate() {
             let c = mean(&actual[k]);
             for (j, i) in obs.groups[g].range().enumerate() {
-                sum += (dn.dot(&(actual[k][j].coords - c)) / solution.sigmas[i]).powi(2);
+                sum += (dn.dot(&(actual[k][j].coords - c)) / sigmas[i]).powi(2);
             }
         }
     }
@@ -88,7 +90,7 @@ pub fn cover(
     opts: &SolveOptions,
     mut solution: Solution,
 ) -> Result<(Solution, Covered), SolveError> {
-    let separation = separation(&solution, obs);
+    let separation = separation(&solution.model, &solution.sigmas, obs);
     if separation <= NEGLIGIBLE_SEPARATION {
         return Ok((solution, Covered { separation, largest_change_m: 0.0 }));
     }
@@ -171,4 +173,49 @@ fn largest_change(a: &Solution, b: &Solution) -> f64 {
         }
     }
     largest
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axis::Travel;
+    use crate::campaign::LineGroup;
+    use crate::functions::Squareness;
+    use crate::model::ModelLayout;
+    use crate::repr::Representation;
+    use crate::topology::Topology;
+
+    /// A beam along Y on a machine whose only error is the squareness `EC0Y` (X gains
+    /// `-y EC0Y`): the reflector's motion leans by `EC0Y` from the commanded line, and the two
+    /// alignments' readings differ by the cosine error `(1 - sqrt(1 + S^2)) (y - mean y)`.
+    #[test]
+    fn separation_is_the_cosine_error_over_the_noise() {
+        let travel = Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]);
+        let layout = ModelLayout::uniform(Topology::parse("FXYZ").unwrap(), travel, Representation::default());
+        let mut model = ErrorModel::zero(layout);
+        let s = 1e-3;
+        model.set_squareness(Squareness::EC0Y, s);
+        let n = 21;
+        let ys: Vec<f64> = (0..n).map(|i| 0.8 * i as f64 / (n - 1) as f64).collect();
+        let obs = Observations {
+            x: ys.iter().map(|&y| Point3::new(0.5, y, -0.3)).collect(),
+            p: vec![Vector3::zeros(); n],
+            l: ys.clone(),
+            t: vec![0.0; n],
+            velocity: vec![None; n],
+            air: vec![None; n],
+            machine_temp: vec![None; n],
+            reading: (0..n).collect(),
+            groups: vec![LineGroup { kind: ObsKind::Beam, station: 0, line: 0, segment: 0, start: 0, end: n }],
+        };
+        let sigma = 1e-7;
+        let got = separation(&model, &vec![sigma; n], &obs);
+        let ym = ys.iter().sum::<f64>() / n as f64;
+        let cosine = 1.0 - (1.0 + s * s).sqrt();
+        let want = ys.iter().map(|y| (cosine * (y - ym) / sigma).powi(2)).sum::<f64>().sqrt();
+        assert!((got - want).abs() < 1e-3 * want, "{got} against {want}");
+        // Without errors the two alignments are the same beam.
+        let zero = ErrorModel::zero(model.layout.clone());
+        assert!(separation(&zero, &vec![sigma; n], &obs) < 1e-9);
+    }
 }
