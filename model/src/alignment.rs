@@ -18,7 +18,7 @@
 //! the estimate to the other alignment's model, variance `d d^T / 3`. At a CMM's usual errors
 //! the two alignments' readings differ by nanometres and nothing changes.
 
-use crate::beam::{fit_line, BeamAlignment};
+use crate::beam::{centred_segments, fit_line, BeamAlignment};
 use crate::campaign::{ObsKind, Observations};
 use crate::estimator::{solve, Solution, SolveError, SolveOptions};
 use crate::kinematics::exact_position;
@@ -41,26 +41,25 @@ pub const NEGLIGIBLE_SEPARATION: f64 = 0.1;
 /// Cauchy-Schwarz that moves a quantity by at most this separation times its standard
 /// uncertainty. Zero without beams.
 pub fn separation(model: &ErrorModel, sigmas: &[f64], obs: &Observations) -> f64 {
+    let owners = obs.line_owners();
     let mut sum = 0.0;
-    for (_, groups) in beam_lines(obs) {
-        let actual: Vec<Vec<Point3<f64>>> = groups
-            .iter()
-            .map(|&g| obs.groups[g].range().map(|i| exact_position(model, &obs.x[i], &obs.p[i])).collect())
-            .collect();
-        let commanded: Vec<Vec<Point3<f64>>> =
-            groups.iter().map(|&g| obs.groups[g].range().map(|i| obs.x[i] + obs.p[i]).collect()).collect();
-        let along = |pts: &[Vec<Point3<f64>>]| fit_line(&centred(pts)).direction;
-        let (n_motion, mut n_commanded) = (along(&actual), along(&commanded));
+    for (gi, _) in obs.groups_of(ObsKind::Beam).filter(|&(gi, _)| owners[gi] == gi) {
+        let members: Vec<usize> = (0..obs.groups.len()).filter(|&k| owners[k] == gi).collect();
+        let points = |at: &dyn Fn(usize) -> Point3<f64>| -> Vec<Point3<f64>> {
+            let segments: Vec<Vec<Point3<f64>>> =
+                members.iter().map(|&k| obs.groups[k].range().map(at).collect()).collect();
+            centred_segments(&segments)
+        };
+        let actual = points(&|i| exact_position(model, &obs.x[i], &obs.p[i]));
+        let commanded = points(&|i| obs.x[i] + obs.p[i]);
+        let n_motion = fit_line(&actual).direction;
+        let mut n_commanded = fit_line(&commanded).direction;
         if n_commanded.dot(&n_motion) < 0.0 {
             n_commanded = -n_commanded;
         }
         let dn = n_commanded - n_motion;
-        for (k, &g) in groups.iter().enumerate() {
-            let c = mean(&actual[k]);
-            for (j, i) in obs.groups[g].range().enumerate() {
-                sum += (dn.dot(&(actual[k][j].coords - c)) / sigmas[i]).powi(2);
-            }
-        }
+        let readings = members.iter().flat_map(|&k| obs.groups[k].range());
+        sum += actual.iter().zip(readings).map(|(q, i)| (dn.dot(&q.coords) / sigmas[i]).powi(2)).sum::<f64>();
     }
     sum.sqrt()
 }
@@ -71,7 +70,7 @@ pub struct Covered {
     /// [`separation`] at the estimate.
     pub separation: f64,
     /// Largest change of a volumetric error component (metres) between the two alignments'
-    /// models, over a 5 x 5 x 5 grid of the travel with the probe at the tool; zero when the
+    /// models, over the map's 50 mm grid of the travel with the probe at the tool; zero when the
     /// separation was negligible and no refit was made.
     pub largest_change_m: f64,
 }
@@ -126,53 +125,12 @@ pub fn cover(
     Ok((solution, Covered { separation, largest_change_m }))
 }
 
-/// The beam lines of `obs`: the groups (segments) of each station's beam, in order.
-fn beam_lines(obs: &Observations) -> Vec<((u32, u32), Vec<usize>)> {
-    let mut lines: Vec<((u32, u32), Vec<usize>)> = Vec::new();
-    for (gi, g) in obs.groups.iter().enumerate().filter(|(_, g)| g.kind == ObsKind::Beam) {
-        let key = (g.station, g.line);
-        match lines.iter_mut().find(|(k, _)| *k == key) {
-            Some((_, v)) => v.push(gi),
-            None => lines.push((key, vec![gi])),
-        }
-    }
-    lines
-}
-
-/// Barycentre of some points.
-fn mean(pts: &[Point3<f64>]) -> Vector3<f64> {
-    pts.iter().map(|q| q.coords).sum::<Vector3<f64>>() / pts.len().max(1) as f64
-}
-
-/// The segments' points, each about its own barycentre (segments have different origins).
-fn centred(segments: &[Vec<Point3<f64>>]) -> Vec<Point3<f64>> {
-    segments
-        .iter()
-        .flat_map(|s| {
-            let c = mean(s);
-            s.iter().map(move |q| Point3::from(q.coords - c))
-        })
-        .collect()
-}
-
-/// Largest change of an error component between two models over a 5 x 5 x 5 grid of the travel.
+/// Largest change of an error component between two models over the map's grid (50 mm).
 fn largest_change(a: &Solution, b: &Solution) -> f64 {
-    let travel = a.model.layout.travel;
-    let at = |ax: usize, k: usize| {
-        let [lo, hi] = travel.range(crate::axis::Axis::ALL[ax]);
-        lo + (hi - lo) * k as f64 / 4.0
-    };
-    let mut largest = 0.0_f64;
-    for i in 0..5 {
-        for j in 0..5 {
-            for k in 0..5 {
-                let x = Point3::new(at(0, i), at(1, j), at(2, k));
-                let d = a.model.error_linear(&x, &Vector3::zeros()) - b.model.error_linear(&x, &Vector3::zeros());
-                largest = largest.max(d.amax());
-            }
-        }
-    }
-    largest
+    crate::predict::grid(&a.model.layout.travel, 0.05)
+        .iter()
+        .map(|x| (a.model.error_linear(x, &Vector3::zeros()) - b.model.error_linear(x, &Vector3::zeros())).amax())
+        .fold(0.0, f64::max)
 }
 
 #[cfg(test)]

@@ -44,6 +44,18 @@ pub struct LineFit {
     pub lateral_rms: f64,
 }
 
+/// The points of a line's segments, each segment about its own barycentre: readings of
+/// different segments have different origins, so only their spread fixes the line's direction.
+pub fn centred_segments(segments: &[Vec<Point3<f64>>]) -> Vec<Point3<f64>> {
+    segments
+        .iter()
+        .flat_map(|s| {
+            let c = s.iter().map(|q| q.coords).sum::<Vector3<f64>>() / s.len().max(1) as f64;
+            s.iter().map(move |q| Point3::from(q.coords - c))
+        })
+        .collect()
+}
+
 /// Fits a line to points by the principal axis of their scatter matrix.
 pub fn fit_line(points: &[Point3<f64>]) -> LineFit {
     let n = points.len().max(1) as f64;

@@ -234,6 +234,22 @@ impl Observations {
         self.groups.iter().enumerate().filter(move |(_, g)| g.kind == kind)
     }
 
+    /// For each group, the index of the first group of the same line (kind, station and line
+    /// id): the segments of one beam, which a beam break splits, share its direction.
+    pub fn line_owners(&self) -> Vec<usize> {
+        (0..self.groups.len())
+            .map(|k| {
+                let g = &self.groups[k];
+                (0..=k)
+                    .find(|&j| {
+                        let h = &self.groups[j];
+                        h.kind == g.kind && h.station == g.station && h.line == g.line
+                    })
+                    .unwrap_or(k)
+            })
+            .collect()
+    }
+
     /// Distinct stations of one kind, in increasing order.
     pub fn stations(&self, kind: ObsKind) -> Vec<u32> {
         let mut s: Vec<u32> = self.groups_of(kind).map(|(_, g)| g.station).collect();

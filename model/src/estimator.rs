@@ -17,7 +17,7 @@
 //! constraints (QR), the Cholesky solve and the eigen-decomposition for identifiability are
 //! faer's, in sequential mode so the result is bit-identical run to run.
 
-use crate::beam::{fit_line, orient_with_readings, BeamAlignment};
+use crate::beam::{centred_segments, fit_line, orient_with_readings, BeamAlignment};
 use crate::campaign::{LineGroup, ObsKind, Observations};
 use crate::functions::ErrorFunction;
 use crate::gauge::{self, Gauge, GAUGE_DIM};
@@ -894,16 +894,7 @@ pub fn fit<'a>(
                 }
             })
             .collect();
-    let dir_owner: Vec<usize> = (0..obs.groups.len())
-        .map(|k| {
-            let g = &obs.groups[k];
-            (0..=k)
-                .find(|&j| {
-                    obs.groups[j].kind == g.kind && obs.groups[j].station == g.station && obs.groups[j].line == g.line
-                })
-                .unwrap()
-        })
-        .collect();
+    let dir_owner = obs.line_owners();
     let structure = Structure::new(layout, obs);
     let mut kind_of = vec![ObsKind::Beam; obs.len()];
     for g in &obs.groups {
@@ -1740,25 +1731,28 @@ fn update_directions(p: &Problem<'_>, s: &mut State) {
             continue;
         }
         let members: Vec<usize> = (0..p.obs.groups.len()).filter(|&k| p.dir_owner[k] == gi).collect();
-        let mut pts = Vec::new();
-        let mut ls = Vec::new();
-        for &k in &members {
-            let gk = &p.obs.groups[k];
-            // Readings of different segments have different origins: centre each segment.
-            let seg_pts: Vec<Point3<f64>> = gk
-                .range()
-                .map(|i| match p.beam_alignment {
-                    BeamAlignment::Motion => actual_point(p, s, i),
-                    BeamAlignment::Commanded => p.obs.x[i] + p.obs.p[i],
-                })
-                .collect();
-            let lm = p.obs.l[gk.range()].iter().sum::<f64>() / gk.len() as f64;
-            let c = seg_pts.iter().map(|q| q.coords).sum::<Vector3<f64>>() / gk.len() as f64;
-            for (j, i) in gk.range().enumerate() {
-                pts.push(Point3::from(seg_pts[j].coords - c));
-                ls.push(p.obs.l[i] - lm);
-            }
-        }
+        let segments: Vec<Vec<Point3<f64>>> = members
+            .iter()
+            .map(|&k| {
+                p.obs.groups[k]
+                    .range()
+                    .map(|i| match p.beam_alignment {
+                        BeamAlignment::Motion => actual_point(p, s, i),
+                        BeamAlignment::Commanded => p.obs.x[i] + p.obs.p[i],
+                    })
+                    .collect()
+            })
+            .collect();
+        let pts = centred_segments(&segments);
+        // Each segment's readings about their own mean, as its points.
+        let ls: Vec<f64> = members
+            .iter()
+            .flat_map(|&k| {
+                let l = &p.obs.l[p.obs.groups[k].range()];
+                let lm = l.iter().sum::<f64>() / l.len() as f64;
+                l.iter().map(move |v| v - lm)
+            })
+            .collect();
         let dir = orient_with_readings(fit_line(&pts).direction, &pts, &ls);
         for &k in &members {
             s.dirs[k] = dir;
