@@ -20,6 +20,14 @@ pub enum BeamAlignment {
     /// pointed along it (e.g. by a deflector set from the machine's coordinates), so the
     /// reflector drifts across the beam with the machine's errors. The beam is the
     /// least-squares line of the commanded reflector points.
+    ///
+    /// Commanded in the model's frame, which the gauge fixes ([`crate::gauge`]; with the
+    /// patent's, X along X's mean motion and Y in the plane of X's and Y's mean motions, the
+    /// squareness errors explicit). Beams set along the axes of some other reference (a
+    /// granite's edges, a frame the errors were drawn in) are neither this nor `Motion`: each
+    /// beam's cosine error then depends on that reference's turn from the model's frame, which
+    /// no reading of the beams sees, and at large errors a tracer in the same campaign
+    /// contradicts the beams' scale (README, "On data we did not simulate").
     Commanded,
 }
 

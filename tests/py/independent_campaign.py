@@ -26,6 +26,13 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   N(0, repeatability) per axis), `w` the interferometer's noise. With `--sparse`, 12 of the
   lines (two axis lines per axis and the mid planes' face diagonals): a plan whose beams leave
   the rolls of the three axes and the squareness EB0Z open in combination.
+  `n` is the commanded line's direction in the frame the machine's errors are drawn in (the
+  default, `--beam-alignment commanded`: beams set along the axes of a reference that is not
+  the machine's motion), or with `--beam-alignment motion` the least-squares line of the
+  reflector's actual positions along the beam (the patent's procedure: the beam aligned with
+  the motion by its walk on the target). The two differ by the cosine of the angle between the
+  motion and the reference, a beam scale of second order in the errors (nanometres at the usual
+  magnitude, tenths of a micrometre at thirty times), and the readings alone cannot tell which.
 - Laser tracer (`--method tracer`): 4 stations beside the corners of the volume, at four
   heights; the reflector at
   the tool (zero probe offset) visits the 12 edges of the working cuboid, `--points` stops per
@@ -377,6 +384,7 @@ def main():
     ap.add_argument("--points", type=int, default=25, help="per beam, or stops per edge of the tracer")
     ap.add_argument("--stops", type=int, default=11, help="stops per edge of the tracer in a joint campaign")
     ap.add_argument("--sparse", action="store_true", help="12 beams instead of 45 (--method beams)")
+    ap.add_argument("--beam-alignment", choices=["commanded", "motion"], default="commanded", help="each beam along its commanded line in the errors' frame, or along the reflector's actual motion (least-squares line)")
     ap.add_argument("--oracle", action="store_true", help="also the oracle's prediction of each validation line")
     ap.add_argument("--map-step", type=float, help="with --oracle: the truth's and the oracle's map on volcal's grid of this step (map.csv)")
     ap.add_argument("--amplitude", type=float, default=1.0, help="scales every error of the machine (1: 10 um positioning, 4 um straightness, 8 urad rotations, squareness spread 12.5 urad)")
@@ -398,6 +406,12 @@ def main():
             for s, e in beam_lines(travel, a.sparse):
                 n = (e - s) / np.linalg.norm(e - s)
                 x = s + np.outer(np.linspace(0.0, 1.0, a.points), e - s)
+                if a.beam_alignment == "motion":
+                    # The principal direction of the reflector's actual positions (no noise: the
+                    # alignment is made before the readings, by the beam's walk on the target).
+                    moved = x + p + machine.error(x, p)
+                    n = np.linalg.svd(moved - moved.mean(axis=0))[2][0]
+                    n = n if n @ (e - s) > 0 else -n
                 actual = x + p + machine.error(x, p) + rng.normal(0.0, REPEATABILITY_M, x.shape)
                 l = actual @ n + rng.uniform(-0.5, 0.5) + rng.normal(0.0, INTERFEROMETER_M, len(x))
                 for xi, li in zip(x, l):
