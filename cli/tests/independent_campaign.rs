@@ -538,6 +538,23 @@ fn fixed_beams_aligned_with_the_motion_on_a_machine_thirty_times_as_wrong_are_pr
     }
 }
 
+/// The beams and the tracer together on a machine thirty times as wrong as usual, its carriages
+/// composing as rigid bodies (`--composition rigid`: each finite rotation turns what the axis
+/// carries, errors included), the beams aligned with the motion and the machine file saying so.
+/// With the simulator's small-angle sum, which rigid carriages do not have and which at these
+/// errors differs from them by up to 0.7 um, seeds 881-883 put 13 of 810 targets beyond 3
+/// standard uncertainties (seed 882 4.53; 3.10 composed as rigid bodies); with the beams along
+/// the frame the errors are drawn in, seeds 821-830 reached 6.00 (README, "On data we did not
+/// simulate"). Seeds 891-893, run once before this test was written and never tuned against
+/// (2.34, 2.37 and 2.95 at most); the bounds on far deviations as at the usual magnitude, the
+/// RMS not bound (over-stated at this magnitude).
+#[test]
+fn beams_and_a_tracer_on_rigid_carriages_thirty_times_as_wrong_are_predicted_within_their_uncertainty() {
+    let machine = ["--amplitude", "30", "--composition", "rigid", "--beam-alignment", "motion"].map(String::from);
+    let label = "beams (aligned with the motion) and tracer, FXYZ, rigid carriages, thirty times the errors";
+    predicted_within_uncertainty_on(label, "joint", "FXYZ", DEMO_TRAVEL, 27, 891..894, &machine, false);
+}
+
 /// The beams and the tracer together over errors of short length scales (0.06 to 0.15 of the
 /// travel): the readings ask for finer knots, and the refinement takes 24 intervals, whose knots
 /// hold the beams' 25 points per line; the tracer's stops raise what the positions determine to

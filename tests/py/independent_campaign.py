@@ -17,7 +17,13 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   each axis's translation errors plus its rotation errors acting on the lever arm to the tool
   (the coordinates of the axes it carries plus the probe offset), and the squareness errors
   `EC0Y` (Y rotated about Z: x gains -y EC0Y), `EB0Z` (x gains z EB0Z), `EA0Z` (y gains -z EA0Z).
-  `e(X, p) = actual reflector position - (X + p)`.
+  `e(X, p) = actual reflector position - (X + p)`. That is the small-angle sum (the default,
+  `--composition first`); with `--composition rigid` the carriages compose as rigid bodies do,
+  each axis's finite rotation (the rotation vector of its three angular errors) turning
+  everything it carries, the errors of the axes it carries included, and its translation
+  errors and sheared direction moving it: `P = q1 d1 + t1 + R1 (q2 d2 + t2 + R2 (q3 d3 + t3 +
+  R3 p))`. The two differ by the rotations times what they carry, nanometres at the usual
+  errors and tenths of a micrometre at thirty times them.
 - Fixed beams (`--method beams`): lines through the working volume (axis-parallel lines on a
   3 x 3 grid of each cross-section, and the 18 face diagonals of the mid planes and the faces),
   each read at `--points` positions for each of three probe offsets. A reading is the
@@ -115,8 +121,20 @@ class Draw:
         return self.features(q) @ self.weight
 
 
+def rotated(r, v):
+    """Each row of `v` turned by the finite rotation whose vector is the same row of `r`
+    (Rodrigues: `v + a (r x v) + b r x (r x v)`, `a = sin t / t`, `b = (1 - cos t) / t^2`)."""
+    t2 = np.sum(r * r, axis=1)
+    t = np.sqrt(t2)
+    # Their series where the angle is tiny (every angle here is below a milliradian).
+    a = np.where(t > 1e-4, np.sin(t) / np.where(t > 1e-4, t, 1.0), 1.0 - t2 / 6.0 + t2 * t2 / 120.0)
+    b = np.where(t > 1e-4, (1.0 - np.cos(t)) / np.where(t > 1e-4, t2, 1.0), 0.5 - t2 / 24.0 + t2 * t2 / 720.0)
+    rv = np.cross(r, v)
+    return v + a[:, None] * rv + b[:, None] * np.cross(r, rv)
+
+
 class Machine:
-    def __init__(self, topology, travel, seed, amplitude=1.0, length_scale=(0.15, 0.4)):
+    def __init__(self, topology, travel, seed, amplitude=1.0, length_scale=(0.15, 0.4), composition="first"):
         """`amplitude` scales every error (the functions' largest excursions and the squareness
         errors' spread); `length_scale` is the range of the functions' length scales, fractions of
         the travel. The defaults are the machine of the docstring."""
@@ -134,9 +152,34 @@ class Machine:
                     amp = 8e-6
                 self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amplitude * amp, length_scale)
         self.sq = {s: float(np.clip(rng.normal(0.0, self.sq_sd), -2 * self.sq_sd, 2 * self.sq_sd)) for s in SQUARENESS}
+        self.composition = composition
 
     def error(self, x, p):
-        """e(X, p) for arrays x, p of shape (n, 3)."""
+        """e(X, p) for arrays x, p of shape (n, 3), composed as `composition` says."""
+        return self.rigid_error(x, p) if self.composition == "rigid" else self.first_order_error(x, p)
+
+    def rigid_error(self, x, p):
+        """e(X, p) of rigid carriages: from the tool back to the frame, each axis moves what it
+        carries by its sheared direction times its coordinate and its translation errors, and
+        turns it by the finite rotation whose vector is its angular errors (Rodrigues)."""
+        x = np.atleast_2d(x)
+        v = np.array(np.broadcast_to(np.atleast_2d(p), x.shape), dtype=float)
+        shear = {
+            "X": np.zeros(3),
+            "Y": np.array([-self.sq["EC0Y"], 0.0, 0.0]),
+            "Z": np.array([self.sq["EB0Z"], -self.sq["EA0Z"], 0.0]),
+        }
+        for a in reversed(self.chain):
+            q = x[:, AXES.index(a)]
+            t = np.stack([self.f[f"E{c}{a}"](q) for c in AXES], axis=1)
+            r = np.stack([self.f[f"E{c}{a}"](q) for c in "ABC"], axis=1)
+            d = np.eye(3)[AXES.index(a)] + shear[a]
+            v = q[:, None] * d + t + rotated(r, v)
+        return v - (x + np.broadcast_to(np.atleast_2d(p), x.shape))
+
+    def first_order_error(self, x, p):
+        """e(X, p) as the small-angle sum, for arrays x, p of shape (n, 3): what the
+        sensitivities below write as a linear map."""
         x = np.atleast_2d(x)
         p = np.broadcast_to(np.atleast_2d(p), x.shape)
         e = np.zeros_like(x)
@@ -189,7 +232,7 @@ class Machine:
         return np.hstack(ca) @ np.hstack(cb).T
 
     def projected(self, x, p, n):
-        """`n . e(X, p)` from the sensitivities, to check them against `error`."""
+        """`n . e(X, p)` from the sensitivities, to check them against `first_order_error`."""
         funcs, sq = self.sensitivities(x, p, n)
         return sum(g * self.f[name](x[:, axis]) for name, (axis, g) in funcs.items()) + sum(
             sq[s] * self.sq[s] for s in SQUARENESS
@@ -275,7 +318,7 @@ def oracle(machine, seen, targets):
     group = np.concatenate([s[4] for s in seen])
     var = np.concatenate([np.broadcast_to(s[5], s[4].shape) for s in seen]) * um**2
     # The sensitivities are the machine's error written as a linear map: check them.
-    e = np.einsum("ij,ij->i", readings[2], machine.error(readings[0], readings[1]))
+    e = np.einsum("ij,ij->i", readings[2], machine.first_order_error(readings[0], readings[1]))
     assert np.allclose(machine.projected(*readings), e, rtol=0, atol=1e-15)
     # A validation target is the difference of `n . e` between a point and its line's start.
     full = [[np.broadcast_to(t[i], t[0].shape) for i in range(3)] for t in targets]
@@ -321,15 +364,26 @@ def oracle(machine, seen, targets):
     return out, posterior
 
 
-def relinearised(machine, seen, ranges, targets, predicted, posterior):
+def relinearised(machine, seen, ranges, beams, targets, predicted, posterior):
     """The oracle with the ranges linearised at its own posterior mean instead of the nominal
     positions, again until its validation lines settle to a picometre (Gauss-Newton: a range
     `l = |X + p + e - S| + c` reads `n . e + c` with `n` the direction at `X + p + e_hat` and the
     reading less `|X + p + e_hat - S| - n . e_hat`). At the usual errors the nominal linearisation
-    is already this; at thirty times them (a millimetre) it is off by a micrometre."""
+    is already this; at thirty times them (a millimetre) it is off by a micrometre. With rigid
+    carriages (`--composition rigid`) every reading also carries what the oracle's linear map
+    leaves out, the posterior's rigid error less its first-order error (`e_hat - e1_hat`): each
+    beam's reading (`beams`: their indices in `seen`) is taken less it along the beam, and each
+    range is linearised about the first-order error."""
+    nominal = {k: seen[k][3] for k in beams}
     for _ in range(8):
         # The posterior's errors at each track's points, once per round.
         e_hats = [posterior.error(seen[k][0], seen[k][1]) for k, _, _ in ranges]
+        first = [posterior.first_order_error(seen[k][0], seen[k][1]) for k, _, _ in ranges] if machine.composition == "rigid" else e_hats
+        # Along each beam, what the linear map leaves out (its mean is the beam's origin's).
+        rest = {}
+        for k in beams:
+            x, p, n = seen[k][0], seen[k][1], seen[k][2]
+            rest[k] = np.einsum("ij,ij->i", n, posterior.error(x, p) - posterior.first_order_error(x, p))
         # What the nominal linearisation leaves out of each range, `|e_hat|^2 / r` at most: at the
         # usual errors a nanometre or two, below a tenth of the tracer's noise, and the oracle
         # stands as it is; at ten times the errors a tenth of a micrometre.
@@ -337,14 +391,21 @@ def relinearised(machine, seen, ranges, targets, predicted, posterior):
         for (k, q, _), e_hat in zip(ranges, e_hats):
             x, p = seen[k][0], seen[k][1]
             left_out = max(left_out, np.max(np.sum(e_hat**2, axis=1) / np.linalg.norm(x + p - q, axis=1)))
+        for (k, _, _), e_hat, e1_hat in zip(ranges, e_hats, first):
+            left_out = max(left_out, np.max(np.abs(e_hat - e1_hat)))
+        for k in beams:
+            left_out = max(left_out, np.max(np.abs(rest[k] - rest[k].mean())))
         if left_out < 0.1 * TRACER_M:
             break
-        for (k, q, l), e_hat in zip(ranges, e_hats):
+        for (k, q, l), e_hat, e1_hat in zip(ranges, e_hats, first):
             x, p, _, _, group, var = seen[k]
             v = x + p + e_hat - q
             r = np.linalg.norm(v, axis=1)
             n = v / r[:, None]
-            seen[k] = (x, p, n, l - r + np.einsum("ij,ij->i", n, e_hat), group, var)
+            seen[k] = (x, p, n, l - r + np.einsum("ij,ij->i", n, e1_hat), group, var)
+        for k in beams:
+            x, p, n, _, group, var = seen[k]
+            seen[k] = (x, p, n, nominal[k] - rest[k], group, var)
         before = predicted
         predicted, posterior = oracle(machine, seen, targets)
         moved = max(np.max(np.abs(m - b)) for (m, _), (b, _) in zip(predicted, before))
@@ -389,15 +450,17 @@ def main():
     ap.add_argument("--map-step", type=float, help="with --oracle: the truth's and the oracle's map on volcal's grid of this step (map.csv)")
     ap.add_argument("--amplitude", type=float, default=1.0, help="scales every error of the machine (1: 10 um positioning, 4 um straightness, 8 urad rotations, squareness spread 12.5 urad)")
     ap.add_argument("--length-scale", default="0.15,0.4", help="lo,hi of the functions' length scales, fractions of the travel")
+    ap.add_argument("--composition", choices=["first", "rigid"], default="first", help="the errors as the small-angle sum, or composed as rigid carriages (finite rotations turning what they carry)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
-    machine = Machine(a.topology, travel, a.seed, a.amplitude, tuple(float(v) for v in a.length_scale.split(",")))
+    machine = Machine(a.topology, travel, a.seed, a.amplitude, tuple(float(v) for v in a.length_scale.split(",")), a.composition)
     rng = np.random.default_rng(a.seed + 7_000_000)
     rows = []
     # What the oracle sees of each block of readings: positions, probe, the direction the
     # reading measures e along, the reading less its nominal value, its origin's group, variance.
     seen = []
+    beams_seen = []
     val_offsets = []
     if a.method in ("beams", "joint"):
         offsets = [np.array([0.0, 0.0, 0.0]), np.array([0.15, 0.0, -0.1]), np.array([0.0, 0.15, -0.1])]
@@ -417,6 +480,7 @@ def main():
                 for xi, li in zip(x, l):
                     rows.append(("beam", 0, beam, li, xi, p))
                 seen.append((x, p, np.tile(n, (len(x), 1)), l - (x + p) @ n, np.full(len(x), beam), np.full(len(x), REPEATABILITY_M**2 + INTERFEROMETER_M**2)))
+                beams_seen.append(len(seen) - 1)
                 beam += 1
         val_offsets = offsets
     ranges = []
@@ -469,7 +533,7 @@ def main():
             targets.append((x, p, np.tile(n, (len(x), 1))))
     if a.oracle:
         predicted, posterior = oracle(machine, seen, targets)
-        predicted, posterior = relinearised(machine, seen, ranges, targets, predicted, posterior)
+        predicted, posterior = relinearised(machine, seen, ranges, beams_seen, targets, predicted, posterior)
         for line, (mean, sd), (x, p, _) in zip(lines, predicted, targets):
             # The posterior mean machine's reading with the beam aligned (its first-order part is
             # `mean`, which the oracle's own check holds to the picometre).
