@@ -534,7 +534,11 @@ fn fixed_beams_aligned_with_the_motion_on_a_machine_thirty_times_as_wrong_are_pr
         let m: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.join(format!("beams-{seed}/model.json"))).unwrap()).unwrap();
         let a = &m["beam_alignment"];
-        assert_eq!((a["aligned_with"].as_str(), a["stated"].as_bool()), (Some("motion"), Some(true)), "seed {seed}: {a}");
+        assert_eq!(
+            (a["aligned_with"].as_str(), a["stated"].as_bool()),
+            (Some("motion"), Some(true)),
+            "seed {seed}: {a}"
+        );
     }
 }
 
