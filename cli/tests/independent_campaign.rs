@@ -235,9 +235,10 @@ const MAP_STEP: &str = "0.2";
 
 /// The volumetric map's error, the measure of issue 12 ("RMS over the volume, after removing the
 /// gauge's rigid-body freedom"), of volcal and of the oracle on one campaign: their squared
-/// residuals from the truth once each difference map's best motion within the gauge (least
-/// squares: a rigid motion of the machine and a rotation of the tool's offset) is removed, over
-/// the grid points where volcal gives a value.
+/// residuals from the truth once each map's exact turn from the truth's points (Kabsch) and then
+/// the difference map's best motion within the gauge (least squares: a rigid motion of the
+/// machine and a rotation of the tool's offset) are removed, over the grid points where volcal
+/// gives a value.
 #[derive(Clone, Copy, Default)]
 struct MapError {
     volcal_ss: f64,
@@ -276,7 +277,7 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
             (key(&v[..6]), v[6..12].to_vec())
         })
         .collect();
-    let (mut at, mut volcal, mut oracle) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut at, mut truths, mut volcal, mut oracle) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (k, probe) in probes.iter().enumerate() {
         let out = d.join(format!("map{k}.csv"));
         let args = ["map", "model.json", "--step", MAP_STEP, "--probe", probe, "--out", out.to_str().unwrap()];
@@ -292,6 +293,7 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
             let r = reference.get(&key(&v[..6])).expect("volcal's grid point in the simulator's map");
             let truth = Vector3::new(r[0], r[1], r[2]);
             at.push([Vector3::new(v[0], v[1], v[2]), Vector3::new(v[3], v[4], v[5])]);
+            truths.push(truth);
             volcal.push(Vector3::new(v[e], v[e + 1], v[e + 2]) - truth);
             oracle.push(Vector3::new(r[3], r[4], r[5]) - truth);
         }
@@ -313,8 +315,25 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
         }
     });
     let svd = a.clone().svd(true, true);
+    // The frames' exact turn first (Kabsch): the gauge's frame is turned from the truth's, and a
+    // turn taken out to first order (`w x X`) leaves its second-order part in the difference
+    // (`w x e` and `|w|^2 X / 2`). Nanometres at the usual errors; at thirty times, with frames
+    // 0.3 mrad apart, it was a quarter of volcal's map error (seed 891: 0.145 -> 0.104 um).
+    let unturned = |diff: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
+        let truth: Vec<Vector3<f64>> = at.iter().zip(&truths).map(|([x, p], t)| x + p + t).collect();
+        let other: Vec<Vector3<f64>> = truth.iter().zip(diff).map(|(t, d)| t + d).collect();
+        let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len() as f64;
+        let (ct, co) = (mean(&truth), mean(&other));
+        let h: nalgebra::Matrix3<f64> = truth.iter().zip(&other).map(|(t, o)| (t - ct) * (o - co).transpose()).sum();
+        let svd = h.svd(true, true);
+        let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
+        let sign = (v_t.transpose() * u.transpose()).determinant().signum();
+        // The turn taking the truth's points onto the other's, and the other's brought back.
+        let turn = v_t.transpose() * nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, sign)) * u.transpose();
+        truth.iter().zip(&other).map(|(t, o)| turn.transpose() * (o - co) + ct - t).collect()
+    };
     let residual_ss = |diff: &[Vector3<f64>]| -> f64 {
-        let b = DVector::from_iterator(3 * n, diff.iter().flat_map(|v| [v.x, v.y, v.z]));
+        let b = DVector::from_iterator(3 * n, unturned(diff).iter().flat_map(|v| [v.x, v.y, v.z]));
         let fit = svd.solve(&b, 1e-12).unwrap();
         (&b - &a * fit).norm_squared()
     };
