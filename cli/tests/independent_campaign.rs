@@ -212,6 +212,14 @@ fn validated(
     (out, open, map)
 }
 
+/// What the model file of `method`'s campaign for `seed` (in a test's scratch `dir`) records of
+/// the beams' alignment (`beam_alignment`).
+fn beam_alignment_of(dir: &Path, method: &str, seed: u64) -> serde_json::Value {
+    let model = dir.join(format!("{method}-{seed}/model.json"));
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&model).unwrap()).unwrap();
+    m["beam_alignment"].clone()
+}
+
 /// The functions of `model` (a model file of `volcal solve`) that share a smoothing parameter,
 /// as `A+B` per function and each function it shares with.
 fn shared_smoothing(model: &Path) -> Vec<String> {
@@ -319,8 +327,8 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
     // turn taken out to first order (`w x X`) leaves its second-order part in the difference
     // (`w x e` and `|w|^2 X / 2`). Nanometres at the usual errors; at thirty times, with frames
     // 0.3 mrad apart, it was a quarter of volcal's map error (seed 891: 0.145 -> 0.104 um).
+    let truth: Vec<Vector3<f64>> = at.iter().zip(&truths).map(|([x, p], t)| x + p + t).collect();
     let unturned = |diff: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-        let truth: Vec<Vector3<f64>> = at.iter().zip(&truths).map(|([x, p], t)| x + p + t).collect();
         let other: Vec<Vector3<f64>> = truth.iter().zip(diff).map(|(t, d)| t + d).collect();
         let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len() as f64;
         let (ct, co) = (mean(&truth), mean(&other));
@@ -550,9 +558,7 @@ fn fixed_beams_aligned_with_the_motion_on_a_machine_thirty_times_as_wrong_are_pr
         return;
     };
     for seed in 831..834 {
-        let m: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.join(format!("beams-{seed}/model.json"))).unwrap()).unwrap();
-        let a = &m["beam_alignment"];
+        let a = beam_alignment_of(&dir, "beams", seed);
         assert_eq!(
             (a["aligned_with"].as_str(), a["stated"].as_bool()),
             (Some("motion"), Some(true)),

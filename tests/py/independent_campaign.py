@@ -374,11 +374,14 @@ def relinearised(machine, seen, ranges, beams, targets, predicted, posterior):
     leaves out, the posterior's rigid error less its first-order error (`e_hat - e1_hat`): each
     beam's reading (`beams`: their indices in `seen`) is taken less it along the beam, and each
     range is linearised about the first-order error."""
+    rigid = machine.composition == "rigid"
+    # With the small-angle sum the linear map is the machine's error and leaves nothing out.
+    beams = beams if rigid else []
     nominal = {k: seen[k][3] for k in beams}
     for _ in range(8):
         # The posterior's errors at each track's points, once per round.
         e_hats = [posterior.error(seen[k][0], seen[k][1]) for k, _, _ in ranges]
-        first = [posterior.first_order_error(seen[k][0], seen[k][1]) for k, _, _ in ranges] if machine.composition == "rigid" else e_hats
+        first = [posterior.first_order_error(seen[k][0], seen[k][1]) for k, _, _ in ranges] if rigid else e_hats
         # Along each beam, what the linear map leaves out (its mean is the beam's origin's).
         rest = {}
         for k in beams:
@@ -469,13 +472,14 @@ def main():
             for s, e in beam_lines(travel, a.sparse):
                 n = (e - s) / np.linalg.norm(e - s)
                 x = s + np.outer(np.linspace(0.0, 1.0, a.points), e - s)
+                err = machine.error(x, p)
                 if a.beam_alignment == "motion":
                     # The principal direction of the reflector's actual positions (no noise: the
                     # alignment is made before the readings, by the beam's walk on the target).
-                    moved = x + p + machine.error(x, p)
+                    moved = x + p + err
                     n = np.linalg.svd(moved - moved.mean(axis=0))[2][0]
                     n = n if n @ (e - s) > 0 else -n
-                actual = x + p + machine.error(x, p) + rng.normal(0.0, REPEATABILITY_M, x.shape)
+                actual = x + p + err + rng.normal(0.0, REPEATABILITY_M, x.shape)
                 l = actual @ n + rng.uniform(-0.5, 0.5) + rng.normal(0.0, INTERFEROMETER_M, len(x))
                 for xi, li in zip(x, l):
                     rows.append(("beam", 0, beam, li, xi, p))
