@@ -388,6 +388,10 @@ fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize,
     // is no yardstick.
     let oracle = rms_over(&all, &|t| t.oracle_m - t.truth_m);
     let oracle_rms_z = rms_over(&all, &|t| (t.oracle_m - t.truth_m) / t.oracle_sigma_m);
+    // Where the truth itself is a tail draw of its prior, the Bayes estimator is beyond 3 sigma
+    // too, and along a whole line at once (its deviations are one direction of the prior): seed
+    // 891's XY diagonal puts 30 of that seed's 270 targets there at every magnitude (README).
+    let oracle_beyond_3 = targets.iter().filter(|t| (t.oracle_m - t.truth_m).abs() > 3.0 * t.oracle_sigma_m).count();
     // The face diagonals apart: along them fixed beams cannot separate the straightness of one
     // axis from the crossed straightness of the other, and both estimators answer with their
     // prior (the oracle's is the truth's own).
@@ -395,7 +399,7 @@ fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize,
     let ratio_off_faces =
         rms_over(&off_faces, &|t| t.predicted_m - t.truth_m) / rms_over(&off_faces, &|t| t.oracle_m - t.truth_m);
     eprintln!(
-        "{method}: error RMS {:.3} um against the oracle's {:.3} um: {:.2} times ({ratio_off_faces:.2} times but for the face diagonals); the oracle's RMS z {oracle_rms_z:.3}",
+        "{method}: error RMS {:.3} um against the oracle's {:.3} um: {:.2} times ({ratio_off_faces:.2} times but for the face diagonals); the oracle's RMS z {oracle_rms_z:.3}, its |z| > 3 in {oracle_beyond_3}",
         actual * 1e6,
         oracle * 1e6,
         actual / oracle
@@ -407,12 +411,19 @@ fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize,
     for l in &lines {
         let of: Vec<&Target> = targets.iter().filter(|t| &t.line == l).collect();
         let rms = |f: &dyn Fn(&Target) -> f64| rms_over(&of, f);
+        // The stated uncertainty over the Bayes estimator's, which is what the truth's own prior
+        // leaves open given these readings: 1 where volcal states what the readings leave open
+        // as it is, above where it over-states it (the face diagonals' open long waves, README).
+        let mut stated: Vec<f64> = of.iter().map(|t| t.sigma_m / t.oracle_sigma_m).collect();
+        stated.sort_by(f64::total_cmp);
         eprintln!(
-            "  {l}: error RMS {:.3} um (the oracle's {:.3} um), standard uncertainty RMS {:.3} um, max |z| {:.2}",
+            "  {l}: error RMS {:.3} um (the oracle's {:.3} um), standard uncertainty RMS {:.3} um ({:.2} times the oracle's, median), max |z| {:.2} (the oracle's {:.2})",
             rms(&|t| t.predicted_m - t.truth_m) * 1e6,
             rms(&|t| t.oracle_m - t.truth_m) * 1e6,
             rms(&|t| t.sigma_m) * 1e6,
-            of.iter().map(|t| ((t.predicted_m - t.truth_m) / t.sigma_m).abs()).fold(0.0, f64::max)
+            stated[stated.len() / 2],
+            of.iter().map(|t| ((t.predicted_m - t.truth_m) / t.sigma_m).abs()).fold(0.0, f64::max),
+            of.iter().map(|t| ((t.oracle_m - t.truth_m) / t.oracle_sigma_m).abs()).fold(0.0, f64::max)
         );
     }
     assert!(max <= 5.0, "{method}: a validation deviation {max:.2} standard uncertainties from the truth");
