@@ -61,6 +61,18 @@ struct Target {
     oracle_sigma_m: f64,
 }
 
+impl Target {
+    /// volcal's deviation from the truth in its standard uncertainties.
+    fn z(&self) -> f64 {
+        (self.predicted_m - self.truth_m) / self.sigma_m
+    }
+
+    /// The oracle's deviation from the truth in its standard uncertainties.
+    fn oracle_z(&self) -> f64 {
+        (self.oracle_m - self.truth_m) / self.oracle_sigma_m
+    }
+}
+
 fn run(cmd: &mut Command) -> String {
     let out = cmd.output().expect("runs");
     let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
@@ -328,10 +340,11 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
     // (`w x e` and `|w|^2 X / 2`). Nanometres at the usual errors; at thirty times, with frames
     // 0.3 mrad apart, it was a quarter of volcal's map error (seed 891: 0.145 -> 0.104 um).
     let truth: Vec<Vector3<f64>> = at.iter().zip(&truths).map(|([x, p], t)| x + p + t).collect();
+    let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len() as f64;
+    let ct = mean(&truth);
     let unturned = |diff: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
         let other: Vec<Vector3<f64>> = truth.iter().zip(diff).map(|(t, d)| t + d).collect();
-        let mean = |v: &[Vector3<f64>]| v.iter().sum::<Vector3<f64>>() / v.len() as f64;
-        let (ct, co) = (mean(&truth), mean(&other));
+        let co = mean(&other);
         let h: nalgebra::Matrix3<f64> = truth.iter().zip(&other).map(|(t, o)| (t - ct) * (o - co).transpose()).sum();
         let svd = h.svd(true, true);
         let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
@@ -368,7 +381,7 @@ fn rms_over(of: &[&Target], f: &dyn Fn(&Target) -> f64) -> f64 {
 /// [`check`] without the share of targets given a number; `calibrated`: whether the RMS of the
 /// deviations over their uncertainties is bound.
 fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize, calibrated: bool) {
-    let z: Vec<f64> = targets.iter().map(|t| (t.predicted_m - t.truth_m) / t.sigma_m).collect();
+    let z: Vec<f64> = targets.iter().map(Target::z).collect();
     let max = z.iter().map(|v| v.abs()).fold(0.0, f64::max);
     let beyond_3 = z.iter().filter(|v| v.abs() > 3.0).count();
     let rms_z = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
@@ -387,11 +400,11 @@ fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize,
     // readings, on average), at the same targets; its own uncertainty must be calibrated, or it
     // is no yardstick.
     let oracle = rms_over(&all, &|t| t.oracle_m - t.truth_m);
-    let oracle_rms_z = rms_over(&all, &|t| (t.oracle_m - t.truth_m) / t.oracle_sigma_m);
+    let oracle_rms_z = rms_over(&all, &Target::oracle_z);
     // Where the truth itself is a tail draw of its prior, the Bayes estimator is beyond 3 sigma
     // too, and along a whole line at once (its deviations are one direction of the prior): seed
     // 891's XY diagonal puts 30 of that seed's 270 targets there at every magnitude (README).
-    let oracle_beyond_3 = targets.iter().filter(|t| (t.oracle_m - t.truth_m).abs() > 3.0 * t.oracle_sigma_m).count();
+    let oracle_beyond_3 = targets.iter().filter(|t| t.oracle_z().abs() > 3.0).count();
     // The face diagonals apart: along them fixed beams cannot separate the straightness of one
     // axis from the crossed straightness of the other, and both estimators answer with their
     // prior (the oracle's is the truth's own).
@@ -422,8 +435,8 @@ fn check_with(method: &str, targets: &[Target], expected: usize, n_seeds: usize,
             rms(&|t| t.oracle_m - t.truth_m) * 1e6,
             rms(&|t| t.sigma_m) * 1e6,
             stated[stated.len() / 2],
-            of.iter().map(|t| ((t.predicted_m - t.truth_m) / t.sigma_m).abs()).fold(0.0, f64::max),
-            of.iter().map(|t| ((t.oracle_m - t.truth_m) / t.oracle_sigma_m).abs()).fold(0.0, f64::max)
+            of.iter().map(|t| t.z().abs()).fold(0.0, f64::max),
+            of.iter().map(|t| t.oracle_z().abs()).fold(0.0, f64::max)
         );
     }
     assert!(max <= 5.0, "{method}: a validation deviation {max:.2} standard uncertainties from the truth");
