@@ -97,6 +97,11 @@ pub struct InterpolationCheck {
     /// checked): `INTERPOLATION_ALPHA / (m - k)` for the axis of the k-th smallest p of `m`, up
     /// to the first axis not contradicted; the axes after it are judged at that axis's level.
     pub level: f64,
+    /// The same check on a coarser interpolant of the axis, where the fit's knots go further
+    /// beyond the positions than the coarser ones (`flexibility::between_positions`): it, not
+    /// this one, judges whether the readings contradict the interpolation. This one's chi-square
+    /// and leverage still give the variance scale of the fit's interpolation ([`variance_scale`]).
+    pub judged_on: Option<Box<InterpolationCheck>>,
 }
 
 impl InterpolationCheck {
@@ -105,13 +110,20 @@ impl InterpolationCheck {
         self.chi2 / self.readings as f64
     }
 
-    /// The readings contradict the interpolation along this axis (p below its level).
+    /// The readings contradict the interpolation along this axis (p below its level; that of
+    /// the coarser interpolant's check where there is one, [`InterpolationCheck::judged_on`]).
     pub fn contradicted(&self) -> bool {
-        self.p_value < self.level
+        match &self.judged_on {
+            Some(c) => c.contradicted(),
+            None => self.p_value < self.level,
+        }
     }
 
     /// For the report, when contradicted.
     pub fn statement(&self) -> String {
+        if let Some(c) = &self.judged_on {
+            return c.statement();
+        }
         let a = self.axis.letter();
         format!(
             "Between the measured positions along {a} the readings do not bear out the interpolation: leaving out each of the {} inner positions in turn, the fit from the others predicts its readings with {:.2} times the variance its uncertainty states (chi2 {:.1} on {}, p {:.1e}). A feature shorter than the step (about {:.0} mm) is likely there, which the interpolation misses by more than its uncertainty, so the error between the positions along {a} is reported as not determined: measure at more positions along {a} (e.g. halve the step).",
@@ -158,6 +170,7 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
                 p_value: chi2_sf(chi2, readings as f64),
                 step_m: median_spacing(positions),
                 level: INTERPOLATION_ALPHA,
+                judged_on: None,
             })
         })
         .collect();
@@ -235,6 +248,7 @@ mod tests {
             p_value,
             step_m: 0.1,
             level: 0.0,
+            judged_on: None,
         }
     }
 
