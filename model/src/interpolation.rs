@@ -271,4 +271,16 @@ mod tests {
         holm(&mut c);
         assert!(c.iter().all(|c| !c.contradicted()), "{c:?}");
     }
+
+    /// Where a check carries the coarser interpolant's, that one's verdict and statement stand,
+    /// whichever way this one's p falls.
+    #[test]
+    fn the_coarser_interpolants_check_judges() {
+        let at = |p: f64| InterpolationCheck { level: INTERPOLATION_ALPHA, ..check(Axis::X, p) };
+        let borne_out = InterpolationCheck { judged_on: Some(Box::new(at(1e-4))), ..at(0.5) };
+        assert!(borne_out.contradicted());
+        assert_eq!(borne_out.statement(), at(1e-4).statement());
+        let contradicted = InterpolationCheck { judged_on: Some(Box::new(at(0.5))), ..at(1e-4) };
+        assert!(!contradicted.contradicted());
+    }
 }
