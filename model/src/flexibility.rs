@@ -415,7 +415,7 @@ pub fn solve_auto(
     let cx = Context { topology, travel, obs, opts, auto, overrides };
     let mut out = choose_knots(&cx)?;
     out = choose_tables(out, &cx);
-    let own = check_interpolation(&out, &cx);
+    let own = check_interpolation(&out.solution.model.layout, &out.solution, &cx);
     // Between the positions of a checked axis the interpolation's variance is what leaving
     // each position out showed, where that is more than the fit states; where the readings
     // contradict the interpolation the map there is not determined by the data: the
@@ -462,33 +462,28 @@ pub fn solve_auto(
 /// 100; over the polynomials one campaign of 100 contradicted with either, over the paper's
 /// tables the same points not determined (864 of 38 400).
 fn stiffer_checks(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<InterpolationCheck> {
-    let mut knots = chosen.knots.clone();
-    let mut any = false;
-    for k in knots.iter_mut() {
-        let coarser = beyond_positions(k.determined, cx.auto);
-        if k.bound == KnotBound::Positions && k.table.is_none() && k.intervals > coarser && k.determined > 0 {
-            k.intervals = coarser;
-            any = true;
+    let intervals = chosen.knots.clone().map(|k| k.intervals);
+    let coarser = chosen.knots.clone().map(|k| {
+        let to = beyond_positions(k.determined, cx.auto);
+        let widened = k.bound == KnotBound::Positions && k.table.is_none() && k.determined > 0 && k.intervals > to;
+        if widened {
+            to
+        } else {
+            k.intervals
         }
-    }
-    if !any {
+    });
+    if coarser == intervals {
         return Vec::new();
     }
-    let layout = layout_with(cx.topology, cx.travel, knots.map(|k| k.intervals), cx.overrides);
-    check_on(&layout, &chosen.solution, cx)
+    let layout = layout_with(cx.topology, cx.travel, coarser, cx.overrides);
+    check_interpolation(&layout, &chosen.solution, cx)
 }
 
-/// The leave-one-position-out check ([`crate::interpolation::check_axes`]) of every axis of `chosen`
-/// that the readings resolve only at their positions, on a refit of its layout with its
-/// smoothing held (the fit keeps the factorised normal equations the check needs; the
-/// solution is `chosen`'s).
-fn check_interpolation(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<InterpolationCheck> {
-    check_on(&chosen.solution.model.layout, &chosen.solution, cx)
-}
-
-/// [`check_interpolation`] on `layout`, with `chosen`'s smoothing held and the axes its
-/// resolution bounds by their positions.
-fn check_on(layout: &ModelLayout, chosen: &Solution, cx: &Context<'_>) -> Vec<InterpolationCheck> {
+/// The leave-one-position-out check ([`crate::interpolation::check_axes`]) of every axis that
+/// `chosen`'s resolution bounds by its positions, on a fit of `layout` (`chosen`'s own, or a
+/// coarser one: `stiffer_checks`) with `chosen`'s smoothing held (the fit keeps the factorised
+/// normal equations the check needs; the solution is `chosen`'s).
+fn check_interpolation(layout: &ModelLayout, chosen: &Solution, cx: &Context<'_>) -> Vec<InterpolationCheck> {
     let bounded: Vec<(Axis, &[f64], f64)> = Axis::ALL
         .iter()
         .filter_map(|&a| match &chosen.resolution[a.index()] {
