@@ -54,9 +54,13 @@ fn run_once(py: &std::path::Path, offset_s: f64, run: usize) -> f64 {
     let g: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let at = g["all_expected_at"].as_f64().unwrap_or_else(|| {
         panic!(
-            "offset {offset_s} s, run {run}: rclpy named only {} after {:.1} s\n{log}",
+            // What rclpy saw of the graph tells a lost node announcement (the topics there, no
+            // name) from a participant it never matched (neither).
+            "offset {offset_s} s, run {run}: rclpy named only {} after {:.1} s; nodes first seen {}; topics last {}\n{log}",
             g["nodes_last"],
-            t0.elapsed().as_secs_f64()
+            t0.elapsed().as_secs_f64(),
+            g["nodes_first_seen"],
+            g["topics_last"]
         )
     });
     let since_both_up = at - (-offset_s).max(0.0);

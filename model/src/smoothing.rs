@@ -74,6 +74,14 @@ use faer::{Mat, Side};
 /// independent simulator's beams, the face diagonals' long wave, which the readings leave open,
 /// was then stated as 0.84 to 0.88 um for errors of 2.26 to 2.32 um (largest |z| 12.5), where the
 /// free bow states 1.75 um for 2.12 um (docs/representation-auto.md, "The bow under a penalty").
+///
+/// Nor a smoother prior: the fourth derivative's (the squared jumps of `f'''` between knot
+/// intervals over `h`, cubics free; an experiment, stop 74) brings the independent simulator's
+/// tracer at thirty times the errors from 1.59-1.75 to 1.39-1.49 times the Bayes oracle's map
+/// error, but takes a tenth of the errors from 1.13-1.15 to 1.16-1.21 and the suite's sparse
+/// tracer over a bump from 1.48 to 2.16; REML given both penalties takes the third's smoothing
+/// parameter to zero over a bump too, so it cannot choose (docs/representation-auto.md, "A
+/// smoother prior between a tracer's stops").
 pub const PENALTY_ORDER: usize = 3;
 
 /// Pieces of each function's travel with a smoothing parameter of their own. The roughness of
