@@ -80,8 +80,10 @@ use faer::{Mat, Side};
 /// tracer at thirty times the errors from 1.59-1.75 to 1.39-1.49 times the Bayes oracle's map
 /// error, but takes a tenth of the errors from 1.13-1.15 to 1.16-1.21 and the suite's sparse
 /// tracer over a bump from 1.48 to 2.16; REML given both penalties takes the third's smoothing
-/// parameter to zero over a bump too, so it cannot choose (docs/representation-auto.md, "A
-/// smoother prior between a tracer's stops").
+/// parameter to zero over a bump too, so it cannot choose. Chosen per campaign by the
+/// left-out stops' squared deleted residuals it keeps about half the gain (thirty times 1.42 to
+/// 1.61) and none of the losses, for twice the solve (docs/representation-auto.md, "A smoother
+/// prior between a tracer's stops").
 pub const PENALTY_ORDER: usize = 3;
 
 /// Pieces of each function's travel with a smoothing parameter of their own. The roughness of
