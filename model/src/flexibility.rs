@@ -322,10 +322,10 @@ pub fn beyond_positions(most: usize, auto: &Auto) -> usize {
 /// (the two differ by -1.5 to +1.6, stop 72) nor the readings left out one position at a time
 /// (the squared prediction error at the left-out stops, summed over the axes, is 4 to 13 %
 /// larger with 16 intervals, seeds 701-705 at ten times) can tell the two apart: both pass
-/// through the stops, and what differs lies between them, where no reading is. The finer interpolant predicts a left-out stop less
-/// sharply, so the check of the interpolation is also made on the coarser one
-/// ([`stiffer_checks`]). Not more than twice: with 20 or 24 intervals for 11 stops the solve no
-/// longer held (stop 69).
+/// through the stops, and what differs lies between them, where no reading is. The finer
+/// interpolant predicts a left-out stop less sharply, so the check of the interpolation is also
+/// made on the coarser one ([`stiffer_checks`]). Not more than twice: with 20 or 24 intervals
+/// for 11 stops the solve no longer held (stop 69).
 pub fn between_positions(most: usize, auto: &Auto) -> usize {
     (2 * most).min(auto.max_intervals.max(most))
 }
@@ -462,8 +462,8 @@ pub fn solve_auto(
 /// 100; over the polynomials one campaign of 100 contradicted with either, over the paper's
 /// tables the same points not determined (864 of 38 400).
 fn stiffer_checks(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<InterpolationCheck> {
-    let intervals = chosen.knots.clone().map(|k| k.intervals);
-    let coarser = chosen.knots.clone().map(|k| {
+    let intervals = chosen.knots.each_ref().map(|k| k.intervals);
+    let coarser = chosen.knots.each_ref().map(|k| {
         let to = beyond_positions(k.determined, cx.auto);
         let widened = k.bound == KnotBound::Positions && k.table.is_none() && k.determined > 0 && k.intervals > to;
         if widened {
