@@ -310,6 +310,24 @@ pub fn run_on(case: &Case, campaign: &Campaign, truth: &FamilyTruth, auto: &Auto
                 t2 += t * t;
                 m = m.max(d.abs());
             }
+            // `AUTO_PROFILE=NAME`: that function along its axis (where an outlier lies).
+            if std::env::var("AUTO_PROFILE").ok().as_deref() == Some(f.name().as_str()) {
+                for i in 0..=40 {
+                    let q = lo + (hi - lo) * i as f64 / 40.0;
+                    let t = aligned.function_value(f, q);
+                    let e = sol.model.function_value(f, q);
+                    let s = predict::function_sigma(&sol.model, &unc, f, q);
+                    eprintln!(
+                        "      q {:.3} truth {:.3e} est {:.3e} err {:.3e} sigma {:.3e} z {:.2}",
+                        q,
+                        t,
+                        e,
+                        e - t,
+                        s,
+                        (e - t) / s
+                    );
+                }
+            }
             let (l, edf) = lam.get(&f.name()).copied().unwrap_or((0.0, 0.0));
             eprintln!(
                 "   {:>4}: err rms {:.3e} (sigma rms {:.3e}) max {:.3e} truth rms {:.3e} lambda {:.2e} edf {:.1}",

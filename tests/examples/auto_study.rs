@@ -7,8 +7,11 @@
 //! `AUTO_SEEDS=1` adds one line per seed (with the knot intervals per axis, `t` where the axis
 //! took linear tables, and the smallest first refinement test, which gates the tables);
 //! `AUTO_DEBUG=1` adds each solve's chi-square (also per instrument) and, per function, its
-//! error against the truth with its smoothing parameter and effective parameters. `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops)
-//! of every case, for robustness sweeps. `AUTO_TABLES=1` tries linear tables (`Auto::tables`)
+//! error against the truth with its smoothing parameter and effective parameters; with
+//! `AUTO_PROFILE=EXY` (a function's name) also that function along its axis (truth, estimate,
+//! standard uncertainty, z at 41 positions), to see where an outlier lies.
+//! `AUTO_TRACER_STEPS=N` sets the tracer's steps per edge (N + 1 stops) of every case, for
+//! robustness sweeps. `AUTO_TABLES=1` tries linear tables (`Auto::tables`)
 //! and says in how many campaigns they were taken.
 
 use volcal::flexibility::Auto;

@@ -11,8 +11,10 @@ the conventions of DESIGN.md section 3 and the campaign format of its section 4 
   (rotations), and three squareness errors of up to 25 urad. This family is none of volcal's
   representations (no B-spline, polynomial or table) and none of its test families.
   `--amplitude K` scales every error by K and `--length-scale LO,HI` sets the range of the
-  length scales: machines of other magnitudes and shapes, for studies of what the test seeds do
-  not have (the defaults draw the same machine as before these options).
+  length scales, and `--bump H,WLO,WHI` adds to every function a Gaussian bump (a guideway's
+  local defect) whose place and width the oracle is told: machines of other magnitudes and
+  shapes, for studies of what the test seeds do not have (the defaults draw the same machine as
+  before these options).
 - The errors compose as ISO 230-1 and patent eq. (7) say: along the chain from workpiece to tool,
   each axis's translation errors plus its rotation errors acting on the lever arm to the tool
   (the coordinates of the axes it carries plus the probe offset), and the squareness errors
@@ -107,15 +109,30 @@ def smooth_draw(rng, lo, hi, amplitude, length_scale=(0.15, 0.4)):
 
 class Draw:
     """One function of the machine, `scale * sum_j w_j cos(omega_j (q - lo) + phase_j)`: its
-    own basis (the features) and its weights."""
+    own basis (the features) and its weights; with a bump (`with_bump`), one more feature, a
+    Gaussian `height * exp(-(q - centre)^2 / (2 width^2))`, and its weight."""
 
     def __init__(self, lo, omega, phase, weight, scale):
         self.lo, self.omega, self.phase, self.weight, self.scale = lo, omega, phase, weight, scale
+        self.bump = None
+
+    def with_bump(self, centre, width, height, weight):
+        """The same function plus a local bump at `centre` of standard width `width` and weight
+        `weight` (N(0, 1) under the prior) on the feature of height `height`: a guideway's
+        local defect, which the oracle is told the place and width of, as the suite's is."""
+        self.bump = (centre, width, height)
+        self.weight = np.append(self.weight, weight)
+        return self
 
     def features(self, q):
         """The basis at `q` (n x m), so that f(q) = features(q) @ weight."""
         q = np.asarray(q, dtype=float)
-        return self.scale * np.cos(np.multiply.outer(q - self.lo, self.omega) + self.phase)
+        f = self.scale * np.cos(np.multiply.outer(q - self.lo, self.omega) + self.phase)
+        if self.bump is None:
+            return f
+        centre, width, height = self.bump
+        g = height * np.exp(-0.5 * ((q - centre) / width) ** 2)
+        return np.concatenate([f, g[..., None]], axis=-1)
 
     def __call__(self, q):
         return self.features(q) @ self.weight
@@ -134,10 +151,14 @@ def rotated(r, v):
 
 
 class Machine:
-    def __init__(self, topology, travel, seed, amplitude=1.0, length_scale=(0.15, 0.4), composition="first"):
+    def __init__(self, topology, travel, seed, amplitude=1.0, length_scale=(0.15, 0.4), composition="first", bump=None):
         """`amplitude` scales every error (the functions' largest excursions and the squareness
         errors' spread); `length_scale` is the range of the functions' length scales, fractions of
-        the travel. The defaults are the machine of the docstring."""
+        the travel; `bump` `(height, width_lo, width_hi)` adds to every function a Gaussian bump
+        at a uniformly drawn place, its standard width drawn from `width_lo..width_hi` of the
+        travel and its height N(0, (height x the function's largest excursion)^2), drawn from a
+        stream of their own (the rest of the machine is the same draw). The defaults are the
+        machine of the docstring."""
         self.chain = [c for c in topology if c in AXES]
         self.travel = travel
         self.sq_sd = SQUARENESS_SD * amplitude
@@ -151,6 +172,15 @@ class Machine:
                 else:
                     amp = 8e-6
                 self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amplitude * amp, length_scale)
+        if bump is not None:
+            height, w_lo, w_hi = bump
+            brng = np.random.default_rng([seed, 1797])
+            for a in AXES:
+                lo, hi = travel[AXES.index(a)]
+                for c in "XYZABC":
+                    amp = amplitude * (10e-6 if c == a else 4e-6 if c in AXES else 8e-6)
+                    centre, width = brng.uniform(lo, hi), (hi - lo) * brng.uniform(w_lo, w_hi)
+                    self.f[f"E{c}{a}"].with_bump(centre, width, height * amp, brng.normal())
         self.sq = {s: float(np.clip(rng.normal(0.0, self.sq_sd), -2 * self.sq_sd, 2 * self.sq_sd)) for s in SQUARENESS}
         self.composition = composition
 
@@ -453,11 +483,13 @@ def main():
     ap.add_argument("--map-step", type=float, help="with --oracle: the truth's and the oracle's map on volcal's grid of this step (map.csv)")
     ap.add_argument("--amplitude", type=float, default=1.0, help="scales every error of the machine (1: 10 um positioning, 4 um straightness, 8 urad rotations, squareness spread 12.5 urad)")
     ap.add_argument("--length-scale", default="0.15,0.4", help="lo,hi of the functions' length scales, fractions of the travel")
+    ap.add_argument("--bump", help="HEIGHT,WLO,WHI: every function also has a Gaussian bump (height N(0, (HEIGHT x its largest excursion)^2), standard width WLO..WHI of the travel, anywhere on it), which the oracle is told the place and width of")
     ap.add_argument("--composition", choices=["first", "rigid"], default="first", help="the errors as the small-angle sum, or composed as rigid carriages (finite rotations turning what they carry)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     travel = [tuple(float(v) for v in t.split(",")) for t in a.travel.split(";")]
-    machine = Machine(a.topology, travel, a.seed, a.amplitude, tuple(float(v) for v in a.length_scale.split(",")), a.composition)
+    bump = tuple(float(v) for v in a.bump.split(",")) if a.bump else None
+    machine = Machine(a.topology, travel, a.seed, a.amplitude, tuple(float(v) for v in a.length_scale.split(",")), a.composition, bump)
     rng = np.random.default_rng(a.seed + 7_000_000)
     rows = []
     # What the oracle sees of each block of readings: positions, probe, the direction the
