@@ -324,9 +324,9 @@ fn map_error(d: &Path, probes: &[String]) -> MapError {
         })
         .collect();
     let (mut at, mut truths, mut volcal, mut oracle) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let step = map_step();
     for (k, probe) in probes.iter().enumerate() {
         let out = d.join(format!("map{k}.csv"));
-        let step = map_step();
         let args = ["map", "model.json", "--step", &step, "--probe", probe, "--out", out.to_str().unwrap()];
         run(Command::new(env!("CARGO_BIN_EXE_volcal")).current_dir(d).args(args));
         let text = std::fs::read_to_string(&out).unwrap();

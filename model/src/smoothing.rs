@@ -690,7 +690,8 @@ impl ReducedPenalty {
     /// of Y the long axis's straightness held 3.6e-4 of the total, below the former 1e-3, and
     /// its face diagonals' pairs, alike to 1.000, were not paired (the independent simulator,
     /// travel 3 x 0.6 x 0.4 m, seeds 1021-1030). Each of the six straightnesses there, as on
-    /// the demo CMM, has 0.238 of its roughness in the null space, every other group 1e-17.
+    /// the demo CMM, has 0.238 of its roughness in the null space, every other group 1e-17 or
+    /// less.
     pub fn alike_where_open(&self, v: &Mat<f64>, candidate: impl Fn(usize, usize) -> bool) -> Vec<(usize, usize)> {
         let c: Vec<Mat<f64>> = self
             .bt
