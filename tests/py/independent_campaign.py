@@ -107,6 +107,14 @@ def smooth_draw(rng, lo, hi, amplitude, length_scale=(0.15, 0.4)):
     return Draw(lo, omega, phase, weight, scale)
 
 
+def largest_excursion(c, a):
+    """The largest excursion of function `E{c}{a}` at amplitude 1: 10 um of positioning, 4 um of
+    straightness, 8 urad of rotation."""
+    if c in AXES:
+        return 10e-6 if c == a else 4e-6
+    return 8e-6
+
+
 class Draw:
     """One function of the machine, `scale * sum_j w_j cos(omega_j (q - lo) + phase_j)`: its
     own basis (the features) and its weights; with a bump (`with_bump`), one more feature, a
@@ -167,18 +175,14 @@ class Machine:
         for a in AXES:
             lo, hi = travel[AXES.index(a)]
             for c in "XYZABC":
-                if c in AXES:
-                    amp = 10e-6 if c == a else 4e-6
-                else:
-                    amp = 8e-6
-                self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amplitude * amp, length_scale)
+                self.f[f"E{c}{a}"] = smooth_draw(rng, lo, hi, amplitude * largest_excursion(c, a), length_scale)
         if bump is not None:
             height, w_lo, w_hi = bump
             brng = np.random.default_rng([seed, 1797])
             for a in AXES:
                 lo, hi = travel[AXES.index(a)]
                 for c in "XYZABC":
-                    amp = amplitude * (10e-6 if c == a else 4e-6 if c in AXES else 8e-6)
+                    amp = amplitude * largest_excursion(c, a)
                     centre, width = brng.uniform(lo, hi), (hi - lo) * brng.uniform(w_lo, w_hi)
                     self.f[f"E{c}{a}"].with_bump(centre, width, height * amp, brng.normal())
         self.sq = {s: float(np.clip(rng.normal(0.0, self.sq_sd), -2 * self.sq_sd, 2 * self.sq_sd)) for s in SQUARENESS}
