@@ -735,7 +735,7 @@ fn widen_at_bound(
     cx: &Context<'_>,
 ) -> (Solution, [AxisKnots; 3]) {
     let before = left_open(&sol, layout);
-    let mut tried: Vec<[usize; 3]> = vec![knots.clone().map(|k| k.intervals)];
+    let mut tried: Vec<[usize; 3]> = vec![knots.each_ref().map(|k| k.intervals)];
     // The fit on `intervals` where it holds and leaves no more open than `sol`.
     let mut held = |intervals: [usize; 3]| -> Option<Solution> {
         if tried.contains(&intervals) {
@@ -764,7 +764,7 @@ fn widen_at_bound(
                 k.intervals = to;
             }
         }
-        if let Some(s) = held(wide.clone().map(|k| k.intervals)) {
+        if let Some(s) = held(wide.each_ref().map(|k| k.intervals)) {
             return (s, wide);
         }
     }
@@ -774,7 +774,7 @@ fn widen_at_bound(
             let Some(to) = widened(a, from_own_knots) else { continue };
             let mut wide = kept_knots.clone();
             wide[a].intervals = to;
-            if let Some(s) = held(wide.clone().map(|k| k.intervals)) {
+            if let Some(s) = held(wide.each_ref().map(|k| k.intervals)) {
                 (kept, kept_knots) = (Some(s), wide);
                 break;
             }
