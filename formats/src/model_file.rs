@@ -404,6 +404,12 @@ pub struct ModelFile {
 pub struct MeasuredPositions {
     pub axis: String,
     pub positions_m: Vec<f64>,
+    /// Positions whose readings touch the axis's functions without measuring them
+    /// (`volcal::interpolation::measured_positions`: a laser tracer's stops between a fixed
+    /// beam's points): interpolated between `positions_m`, but given a number where the
+    /// interpolation is contradicted. Absent (none) in files from before the distinction.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub touched_positions_m: Vec<f64>,
     /// The readings contradict the interpolation between the positions
     /// (`volcal::interpolation`): the error between them is not determined. Absent (false) in
     /// files from before the check.
@@ -503,10 +509,11 @@ impl ModelFile {
             measured_positions: Axis::ALL
                 .iter()
                 .filter_map(|&a| match &sol.resolution[a.index()] {
-                    AxisResolution::AtPositions { positions, contradicted, interpolation_scale, .. } => {
+                    AxisResolution::AtPositions { positions, touched, contradicted, interpolation_scale, .. } => {
                         Some(MeasuredPositions {
                             axis: a.letter().to_string(),
                             positions_m: positions.clone(),
+                            touched_positions_m: touched.clone(),
                             interpolation_contradicted: *contradicted,
                             interpolation_variance_scale: *interpolation_scale,
                         })
@@ -526,14 +533,22 @@ impl ModelFile {
                 .iter()
                 .find(|a| a.letter().to_string() == m.axis)
                 .ok_or_else(|| anyhow::anyhow!("field measured_positions[{j}]: unknown axis {:?}", m.axis))?;
-            if m.positions_m.windows(2).any(|w| !(w[0] < w[1])) || m.positions_m.iter().any(|v| !v.is_finite()) {
+            // Finite and increasing: NaN compares false either way.
+            let increasing = |v: &[f64]| v.iter().all(|x| x.is_finite()) && v.windows(2).all(|w| w[0] < w[1]);
+            if !increasing(&m.positions_m) {
                 bail!("field measured_positions[{j}]: positions must be finite and increasing");
+            }
+            let t = &m.touched_positions_m;
+            if !increasing(t) {
+                bail!("field measured_positions[{j}].touched_positions_m: positions must be finite and increasing");
             }
             let s = m.interpolation_variance_scale;
             if !(s.is_finite() && s > 0.0) {
                 bail!("field measured_positions[{j}].interpolation_variance_scale: must be a positive number, got {s}");
             }
-            let r = AxisResolution::at(m.positions_m.clone()).with_interpolation_scale(s);
+            let r = AxisResolution::at(m.positions_m.clone())
+                .measured_at(m.positions_m.clone(), t.clone())
+                .with_interpolation_scale(s);
             out[a.index()] = if m.interpolation_contradicted { r.contradicted() } else { r };
         }
         Ok(out)
@@ -669,8 +684,11 @@ mod tests {
         let out = volcal_sim::simulate(&cfg, &[], 7).unwrap();
         let prep = volcal::campaign::prepare(&out.campaign, &m.layout.travel, &m.expansion).unwrap();
         let mut sol = volcal::solve(&m.layout, &prep.obs, &m.solve_options(), &[]).unwrap();
-        // A factor with a full 17-digit mantissa, as the interpolation check writes them.
-        sol.resolution[1] = AxisResolution::at(vec![0.0, 0.1, 0.2, 0.3]).with_interpolation_scale(1.935531796686672);
+        // A factor with a full 17-digit mantissa, as the interpolation check writes them, and a
+        // position the readings touch without measuring it.
+        sol.resolution[1] = AxisResolution::at(vec![0.0, 0.1, 0.2, 0.3])
+            .measured_at(vec![0.0, 0.2, 0.3], vec![0.1])
+            .with_interpolation_scale(1.935531796686672);
         let path = std::env::temp_dir().join(format!("volcal-roundtrip-{}.json", std::process::id()));
         ModelFile::from_solution(&sol, &prep.obs.groups, Provenance::default()).write(&path).unwrap();
         let back = load(&path);
@@ -682,6 +700,16 @@ mod tests {
         let n = sol.covariance.nrows();
         let all = |c: &Mat<f64>| (0..n).flat_map(|i| (0..n).map(move |j| c[(i, j)].to_bits())).collect::<Vec<_>>();
         assert_eq!(all(&back.covariance), all(&sol.covariance), "covariance");
-        assert_eq!(back.resolution, sol.resolution, "interpolation factors");
+        assert_eq!(back.resolution, sol.resolution, "measured and touched positions, interpolation factors");
+
+        // A file whose touched positions are not increasing is refused, and says which field.
+        ModelFile::from_solution(&sol, &prep.obs.groups, Provenance::default()).write(&path).unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        v["measured_positions"][0]["touched_positions_m"] = serde_json::json!([0.1, 0.05]);
+        std::fs::write(&path, v.to_string()).unwrap();
+        let err = load(&path).err().map(|e| format!("{e:#}"));
+        std::fs::remove_file(&path).ok();
+        let err = err.expect("decreasing touched positions refused");
+        assert!(err.contains("measured_positions[0].touched_positions_m"), "{err}");
     }
 }

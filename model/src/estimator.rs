@@ -545,6 +545,11 @@ impl<'a> Fit<'a> {
             .collect()
     }
 
+    /// A reading's weight, the inverse of its stated variance.
+    fn weight(&self, i: usize) -> f64 {
+        1.0 / (self.prob.sigma[i] * self.prob.sigma[i])
+    }
+
     /// `B^T N+ B` for columns `b` over the model's parameters (`n x k`), with `N+` the inverse of
     /// the fitted (penalised) normal matrix on the gauge-constrained subspace.
     fn constrained_quadratic(&self, b: &Mat<f64>) -> Mat<f64> {
@@ -564,59 +569,61 @@ impl<'a> Fit<'a> {
     /// chi-square), one that interpolates worse than its uncertainty says, more. `None` for a
     /// set whose readings the others do not predict at all (`I - H` singular).
     pub fn deletion_statistics(&self, sets: &[Vec<usize>]) -> Vec<Option<Deletion>> {
-        let p = &self.prob;
-        let rows = self.rows.get_or_init(|| ModelRows::new(p, &self.state));
-        let n = p.dims.n();
-        let weight = |i: usize| 1.0 / (p.sigma[i] * p.sigma[i]);
-        // Each group's weighted mean row and weight: its origin is eliminated by centring.
-        let mut group_of = vec![0; p.obs.len()];
-        let mut mean = Mat::<f64>::zeros(n, p.obs.groups.len());
-        let mut wsum = vec![0.0; p.obs.groups.len()];
-        for (gi, g) in p.obs.groups.iter().enumerate() {
-            for i in g.range() {
-                group_of[i] = gi;
-                wsum[gi] += weight(i);
-                let (ri, rv) = rows.row(i);
-                let col = mean.col_as_slice_mut(gi);
-                for (&c, &v) in ri.iter().zip(rv) {
-                    col[c] += weight(i) * v;
-                }
-            }
-            let w = wsum[gi];
-            mean.col_as_slice_mut(gi).iter_mut().for_each(|v| *v /= w);
-        }
+        let centred = Centred::new(self);
         sets.iter()
             .map(|set| {
                 let k = set.len();
-                // Whitened, centred rows as columns.
-                let mut b = Mat::<f64>::zeros(n, k);
-                for (a, &i) in set.iter().enumerate() {
-                    let sw = weight(i).sqrt();
-                    let col = b.col_as_slice_mut(a);
-                    for (c, m) in col.iter_mut().zip(mean.col_as_slice(group_of[i])) {
-                        *c = -m * sw;
-                    }
-                    let (ri, rv) = rows.row(i);
-                    for (&c, &v) in ri.iter().zip(rv) {
-                        col[c] += v * sw;
-                    }
-                }
-                let q = self.constrained_quadratic(&b);
-                let i_h = Mat::from_fn(k, k, |a, c| {
-                    let (i, j) = (set[a], set[c]);
-                    // The origin's own share of the hat matrix.
-                    let origin = if group_of[i] == group_of[j] {
-                        (weight(i) * weight(j)).sqrt() / wsum[group_of[i]]
-                    } else {
-                        0.0
-                    };
-                    f64::from(a == c) - 0.5 * (q[(a, c)] + q[(c, a)]) - origin
-                });
+                let q = self.constrained_quadratic(&centred.columns(set));
+                let i_h = centred.complement_of_hat(set, &q);
+                let p = &self.prob;
                 let e = Mat::from_fn(k, 1, |a, _| self.solution.residuals[set[a]] / p.sigma[set[a]]);
                 let leverage = k as f64 - (0..k).map(|a| i_h[(a, a)]).sum::<f64>();
                 let llt = i_h.llt(Side::Lower).ok()?;
                 let t = (e.transpose() * llt.solve(&e))[(0, 0)];
                 t.is_finite().then_some(Deletion { statistic: t, leverage })
+            })
+            .collect()
+    }
+
+    /// What a set of readings contributes to linear functions of the model's parameters: for
+    /// each set and each column `s` of its `selectors` (`n_u x m`, over the error model's
+    /// coefficients), the variance of `s . u` as fitted and as the fit without the set would
+    /// state it, `(with, without)`, in the fit's whitened units (times the noise scale squared
+    /// they are the solution's). By Woodbury, with `B` the set's centred whitened rows,
+    /// `H = B^T N+ B` (each group's origin included) and `c = B^T N+ s`,
+    /// `without = with + c^T (I - H)^-1 c`. `None` for a set without which the fit does not
+    /// hold (`I - H` singular).
+    ///
+    /// Whether the readings at a position determine the functions there, or the fit's
+    /// neighbouring readings and its roughness prior do ([`crate::interpolation::measured_positions`]).
+    pub fn deletion_variances(&self, sets: &[(Vec<usize>, Mat<f64>)]) -> Vec<Option<Vec<(f64, f64)>>> {
+        let centred = Centred::new(self);
+        let n = self.prob.dims.n();
+        sets.iter()
+            .map(|(set, selectors)| {
+                let (k, m) = (set.len(), selectors.ncols());
+                let rows = centred.columns(set);
+                let both = Mat::from_fn(n, k + m, |i, j| {
+                    if j < k {
+                        rows[(i, j)]
+                    } else if i < selectors.nrows() {
+                        selectors[(i, j - k)]
+                    } else {
+                        0.0
+                    }
+                });
+                let q = self.constrained_quadratic(&both);
+                let llt = centred.complement_of_hat(set, &q).llt(Side::Lower).ok()?;
+                let c = Mat::from_fn(k, m, |a, j| q[(a, k + j)]);
+                let extra = llt.solve(&c);
+                let out: Vec<(f64, f64)> = (0..m)
+                    .map(|j| {
+                        let with = q[(k + j, k + j)];
+                        let add: f64 = (0..k).map(|a| c[(a, j)] * extra[(a, j)]).sum();
+                        (with, with + add)
+                    })
+                    .collect();
+                out.iter().all(|(w, o)| w.is_finite() && o.is_finite()).then_some(out)
             })
             .collect()
     }
@@ -666,6 +673,77 @@ pub struct Deletion {
     /// `tr((I - H) (I + F P)) = k + (F - 1) tr H`: where the posterior's variance is `F` times
     /// the stated one, the statistic's expectation exceeds `k` by `(F - 1) tr H`.
     pub leverage: f64,
+}
+
+/// The fit's readings as the deletion quantities see them ([`Fit::deletion_statistics`],
+/// [`Fit::deletion_variances`]): each group's origin eliminated by centring its rows on the
+/// group's weighted mean, and its share of the hat matrix added back.
+struct Centred<'f, 'a> {
+    fit: &'f Fit<'a>,
+    group_of: Vec<usize>,
+    mean: Mat<f64>,
+    wsum: Vec<f64>,
+}
+
+impl<'f, 'a> Centred<'f, 'a> {
+    fn new(fit: &'f Fit<'a>) -> Centred<'f, 'a> {
+        let p = &fit.prob;
+        let rows = fit.rows.get_or_init(|| ModelRows::new(p, &fit.state));
+        let n = p.dims.n();
+        let mut group_of = vec![0; p.obs.len()];
+        let mut mean = Mat::<f64>::zeros(n, p.obs.groups.len());
+        let mut wsum = vec![0.0; p.obs.groups.len()];
+        for (gi, g) in p.obs.groups.iter().enumerate() {
+            for i in g.range() {
+                group_of[i] = gi;
+                let w = fit.weight(i);
+                wsum[gi] += w;
+                let (ri, rv) = rows.row(i);
+                let col = mean.col_as_slice_mut(gi);
+                for (&c, &v) in ri.iter().zip(rv) {
+                    col[c] += w * v;
+                }
+            }
+            let w = wsum[gi];
+            mean.col_as_slice_mut(gi).iter_mut().for_each(|v| *v /= w);
+        }
+        Centred { fit, group_of, mean, wsum }
+    }
+
+    /// The set's whitened, centred rows as columns (`n x k`).
+    fn columns(&self, set: &[usize]) -> Mat<f64> {
+        let p = &self.fit.prob;
+        let rows = self.fit.rows.get_or_init(|| ModelRows::new(p, &self.fit.state));
+        let mut b = Mat::<f64>::zeros(p.dims.n(), set.len());
+        for (a, &i) in set.iter().enumerate() {
+            let sw = self.fit.weight(i).sqrt();
+            let col = b.col_as_slice_mut(a);
+            for (c, m) in col.iter_mut().zip(self.mean.col_as_slice(self.group_of[i])) {
+                *c = -m * sw;
+            }
+            let (ri, rv) = rows.row(i);
+            for (&c, &v) in ri.iter().zip(rv) {
+                col[c] += v * sw;
+            }
+        }
+        b
+    }
+
+    /// `I - H` over the set, from the leading `k x k` block of `q` (the set's columns' quadratic
+    /// form, [`Fit::constrained_quadratic`]) and each group's origin.
+    fn complement_of_hat(&self, set: &[usize], q: &Mat<f64>) -> Mat<f64> {
+        let k = set.len();
+        Mat::from_fn(k, k, |a, c| {
+            let (i, j) = (set[a], set[c]);
+            // The origin's own share of the hat matrix.
+            let origin = if self.group_of[i] == self.group_of[j] {
+                (self.fit.weight(i) * self.fit.weight(j)).sqrt() / self.wsum[self.group_of[i]]
+            } else {
+                0.0
+            };
+            f64::from(a == c) - 0.5 * (q[(a, c)] + q[(c, a)]) - origin
+        })
+    }
 }
 
 /// Where each part's square block starts in [`ScoreSums::g2`] (the blocks one after the other)

@@ -20,7 +20,7 @@
 
 use crate::axis::{Axis, Travel};
 use crate::campaign::Observations;
-use crate::estimator::{fit, solve, Effect, ObsContext, Solution, SolveError, SolveOptions};
+use crate::estimator::{fit, solve, Effect, Fit, ObsContext, Solution, SolveError, SolveOptions};
 use crate::functions::ErrorFunction;
 use crate::interpolation::{self, InterpolationCheck};
 use crate::model::ModelLayout;
@@ -415,7 +415,26 @@ pub fn solve_auto(
     let cx = Context { topology, travel, obs, opts, auto, overrides };
     let mut out = choose_knots(&cx)?;
     out = choose_tables(out, &cx);
-    let own = check_interpolation(&out.solution.model.layout, &out.solution, &cx);
+    let layout = out.solution.model.layout.clone();
+    let held = held_fit(&layout, &out.solution, &cx);
+    // Every position with readings is left out in turn, those that only touch the functions as
+    // well: where they are not measured, the interpolation is what predicts them.
+    let own = held.as_ref().map(|f| check_axes_on(f, &out.solution, &cx)).unwrap_or_default();
+    let stiffer = stiffer_checks(&out, &cx);
+    if let Some(f) = &held {
+        for a in Axis::ALL {
+            let r = &mut out.solution.resolution[a.index()];
+            if let AxisResolution::AtPositions { positions, tolerance_m, .. } = &*r {
+                let measured = interpolation::measured_positions(f, &layout, obs, a, positions, *tolerance_m);
+                let touched = positions
+                    .iter()
+                    .copied()
+                    .filter(|q| measured.binary_search_by(|m| m.total_cmp(q)).is_err())
+                    .collect();
+                *r = std::mem::take(r).measured_at(measured, touched);
+            }
+        }
+    }
     // Between the positions of a checked axis the interpolation's variance is what leaving
     // each position out showed, where that is more than the fit states; where the readings
     // contradict the interpolation the map there is not determined by the data: the
@@ -423,7 +442,6 @@ pub fn solve_auto(
     // contradict it is judged on the coarser interpolant where the axis has one
     // (`stiffer_checks`).
     let scale = interpolation::variance_scale(&own).max(1.0);
-    let stiffer = stiffer_checks(&out, &cx);
     out.interpolation = own
         .into_iter()
         .map(|c| InterpolationCheck {
@@ -484,20 +502,36 @@ fn stiffer_checks(chosen: &AutoSolve, cx: &Context<'_>) -> Vec<InterpolationChec
 /// coarser one: `stiffer_checks`) with `chosen`'s smoothing held (the fit keeps the factorised
 /// normal equations the check needs; the solution is `chosen`'s).
 fn check_interpolation(layout: &ModelLayout, chosen: &Solution, cx: &Context<'_>) -> Vec<InterpolationCheck> {
-    let bounded: Vec<(Axis, &[f64], f64)> = Axis::ALL
+    held_fit(layout, chosen, cx).map(|f| check_axes_on(&f, chosen, cx)).unwrap_or_default()
+}
+
+/// The axes that `chosen`'s resolution bounds by its positions, with those positions and their
+/// tolerance.
+fn bounded_axes(chosen: &Solution) -> Vec<(Axis, &[f64], f64)> {
+    Axis::ALL
         .iter()
         .filter_map(|&a| match &chosen.resolution[a.index()] {
             AxisResolution::AtPositions { positions, tolerance_m, .. } => Some((a, positions.as_slice(), *tolerance_m)),
             AxisResolution::Everywhere => None,
         })
-        .collect();
-    if bounded.is_empty() {
-        return Vec::new();
+        .collect()
+}
+
+/// A fit of `layout` with `chosen`'s smoothing held, which keeps the factorised normal equations
+/// the checks need; `None` where no axis is bounded by its positions (nothing to check) or the
+/// fit fails.
+fn held_fit<'a>(layout: &'a ModelLayout, chosen: &Solution, cx: &Context<'a>) -> Option<Fit<'a>> {
+    if bounded_axes(chosen).is_empty() {
+        return None;
     }
     let smoothing = chosen.smoothing.as_ref().map(Smoothing::fixed_from);
     let o = SolveOptions { smoothing: smoothing.or_else(|| cx.opts.smoothing.clone()), ..cx.opts.clone() };
-    let Ok(f) = fit(layout, cx.obs, &o, &[]) else { return Vec::new() };
-    interpolation::check_axes(&f, cx.obs, &bounded)
+    fit(layout, cx.obs, &o, &[]).ok()
+}
+
+/// [`interpolation::check_axes`] of `chosen`'s bounded axes on `f`.
+fn check_axes_on(f: &Fit<'_>, chosen: &Solution, cx: &Context<'_>) -> Vec<InterpolationCheck> {
+    interpolation::check_axes(f, cx.obs, &bounded_axes(chosen))
 }
 
 /// The knots and the solution on them ([`solve_auto`] without the interpolation checks).

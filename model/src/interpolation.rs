@@ -45,7 +45,10 @@ use crate::axis::Axis;
 use crate::campaign::Observations;
 use crate::diagnose::locate::chi2_sf;
 use crate::estimator::Fit;
+use crate::functions::ErrorFunction;
+use crate::model::ModelLayout;
 use crate::predict::median_spacing;
+use faer::Mat;
 
 /// Family-wise significance over a campaign's checked axes below which the interpolation is
 /// reported as contradicted by the readings: at most one campaign in twenty whose errors are
@@ -176,6 +179,80 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
         .collect();
     holm(&mut checks);
     checks
+}
+
+/// Share of the best-measured position's that a position's own readings must remove of some
+/// function's variance for it to count as measured ([`measured_positions`]).
+pub const MEASURED_SHARE: f64 = 0.5;
+
+/// The positions of `axis` (sorted; a reading within `tolerance_m` of one is at it) at which the
+/// readings measure the axis's error functions, not just touch them: the two ends, each inner
+/// position without whose readings the fit does not hold, and each whose own readings remove
+/// of some function's variance there (its variance as fitted against the fit's without them,
+/// [`Fit::deletion_variances`]) at least [`MEASURED_SHARE`] of what the best-measured inner
+/// position's remove.
+///
+/// Why: a laser tracer's stop between a fixed beam's points has readings (four ranges per edge
+/// through it), but they pin the functions there far less than the beams' readings at their
+/// points; the value there is mostly the prior's interpolation between the beams' points, and a
+/// feature between them is missed by more than the stated uncertainty. Counted as measured,
+/// such a stop was given neither the interpolation's variance scale nor the straight-run bound.
+/// Seen on the independent simulator with a narrow bump on every function (the 45 beams and the
+/// tracer, seeds 1081-1100): axis X lines at the stops x = 0.1 and 0.3 m up to 6.9 standard
+/// uncertainties off. The share there is 0.19 to 0.57 for the best-pinned function, at the
+/// beams' points 0.62 to 0.99 (docs/representation-auto.md, "How much a stop's own readings pin
+/// the functions").
+///
+/// Against the best-measured position, not an absolute share: where the positions are as dense
+/// as the knots or denser, the neighbours determine much of each one's value, and a plan of one
+/// kind of readings measures all its positions alike (the sparse tracer over the paper's tables:
+/// 0.32 to 0.53 along X and Y; over the other truths 0.73 to 0.99). Positions of a kind are
+/// measured alike; the rule singles out those read far more weakly than the axis's others.
+pub fn measured_positions(
+    fit: &Fit<'_>,
+    layout: &ModelLayout,
+    obs: &Observations,
+    axis: Axis,
+    positions: &[f64],
+    tolerance_m: f64,
+) -> Vec<f64> {
+    let functions: Vec<ErrorFunction> = ErrorFunction::all().into_iter().filter(|f| f.axis == axis).collect();
+    let n_u = functions.iter().map(|&f| layout.range(f).end).max().unwrap_or(0);
+    let inner = positions.get(1..positions.len().saturating_sub(1)).unwrap_or(&[]);
+    let sets: Vec<(Vec<usize>, Mat<f64>)> = inner
+        .iter()
+        .map(|&q| {
+            let set = (0..obs.len()).filter(|&i| (axis.coord(&obs.x[i]) - q).abs() <= tolerance_m).collect();
+            let mut s = Mat::<f64>::zeros(n_u, functions.len());
+            for (j, &f) in functions.iter().enumerate() {
+                let start = layout.range(f).start;
+                layout.basis(f).visit(q, false, |i, v| s[(start + i, j)] = v);
+            }
+            (set, s)
+        })
+        .collect();
+    // The largest share of any function's variance that each position's own readings remove;
+    // `None` where the fit does not hold without them (then they measure it).
+    let shares: Vec<Option<f64>> = fit
+        .deletion_variances(&sets)
+        .into_iter()
+        .map(|v| {
+            v.map(|v| {
+                v.iter()
+                    .filter(|&&(_, without)| without > 0.0)
+                    .map(|&(with, without)| 1.0 - with / without)
+                    .fold(0.0, f64::max)
+            })
+        })
+        .collect();
+    let best = shares.iter().flatten().copied().fold(0.0, f64::max);
+    let measured = shares.iter().map(|s| s.is_none_or(|s| s >= MEASURED_SHARE * best));
+    let mut kept: Vec<f64> = positions.first().copied().into_iter().collect();
+    kept.extend(inner.iter().zip(measured).filter_map(|(&q, m)| m.then_some(q)));
+    if positions.len() > 1 {
+        kept.extend(positions.last().copied());
+    }
+    kept
 }
 
 /// The factor on the interpolation's variance that the left-out positions of a campaign's checked

@@ -28,6 +28,11 @@ pub enum AxisResolution {
     AtPositions {
         /// Sorted, metres.
         positions: Vec<f64>,
+        /// Positions with readings that touch the functions without measuring them
+        /// ([`crate::interpolation::measured_positions`]), sorted, metres: between the measured
+        /// positions like any coordinate, but where the readings contradict the interpolation
+        /// they are still given a number (their readings speak there, [`AxisResolution::leaves_open`]).
+        touched: Vec<f64>,
         /// How close to a position a coordinate counts as measured, metres.
         tolerance_m: f64,
         /// The readings contradict the interpolation between the positions
@@ -54,15 +59,42 @@ impl AxisResolution {
     /// of the median spacing of a position counts as measured.
     pub fn at(positions: Vec<f64>) -> AxisResolution {
         let tolerance_m = median_spacing(&positions) * 0.01;
-        AxisResolution::AtPositions { positions, tolerance_m, contradicted: false, interpolation_scale: 1.0 }
+        AxisResolution::AtPositions {
+            positions,
+            touched: Vec::new(),
+            tolerance_m,
+            contradicted: false,
+            interpolation_scale: 1.0,
+        }
     }
 
     /// The same, with the interpolation's variance between the positions scaled by `scale`
     /// (what the leave-one-position-out checks show; a resolution everywhere interpolates nothing).
     pub fn with_interpolation_scale(self, scale: f64) -> AxisResolution {
         match self {
-            AxisResolution::AtPositions { positions, tolerance_m, contradicted, .. } => {
-                AxisResolution::AtPositions { positions, tolerance_m, contradicted, interpolation_scale: scale }
+            AxisResolution::AtPositions { positions, touched, tolerance_m, contradicted, .. } => {
+                AxisResolution::AtPositions {
+                    positions,
+                    touched,
+                    tolerance_m,
+                    contradicted,
+                    interpolation_scale: scale,
+                }
+            }
+            AxisResolution::Everywhere => AxisResolution::Everywhere,
+        }
+    }
+
+    /// The same, measured at `positions` only (sorted, a subset of the positions), the rest
+    /// `touched` (sorted): their readings touch the functions without determining them
+    /// ([`crate::interpolation::measured_positions`]), and there the functions are interpolated
+    /// between the measured positions. The tolerance is the measured positions' own, as
+    /// [`AxisResolution::at`] gives it.
+    pub fn measured_at(self, positions: Vec<f64>, touched: Vec<f64>) -> AxisResolution {
+        match self {
+            AxisResolution::AtPositions { contradicted, interpolation_scale, .. } => {
+                let tolerance_m = median_spacing(&positions) * 0.01;
+                AxisResolution::AtPositions { positions, touched, tolerance_m, contradicted, interpolation_scale }
             }
             AxisResolution::Everywhere => AxisResolution::Everywhere,
         }
@@ -83,8 +115,8 @@ impl AxisResolution {
     /// resolution everywhere has nothing interpolated to contradict and stays as it is).
     pub fn contradicted(self) -> AxisResolution {
         match self {
-            AxisResolution::AtPositions { positions, tolerance_m, interpolation_scale, .. } => {
-                AxisResolution::AtPositions { positions, tolerance_m, contradicted: true, interpolation_scale }
+            AxisResolution::AtPositions { positions, touched, tolerance_m, interpolation_scale, .. } => {
+                AxisResolution::AtPositions { positions, touched, tolerance_m, contradicted: true, interpolation_scale }
             }
             AxisResolution::Everywhere => AxisResolution::Everywhere,
         }
@@ -94,11 +126,7 @@ impl AxisResolution {
     pub fn interpolates(&self, q: f64) -> bool {
         match self {
             AxisResolution::Everywhere => false,
-            AxisResolution::AtPositions { positions, tolerance_m, .. } => {
-                let i = positions.partition_point(|&p| p < q);
-                let near = |k: usize| positions.get(k).is_some_and(|&p| (p - q).abs() <= *tolerance_m);
-                !(near(i) || (i > 0 && near(i - 1)))
-            }
+            AxisResolution::AtPositions { positions, tolerance_m, .. } => !near_any(positions, q, *tolerance_m),
         }
     }
 
@@ -120,10 +148,23 @@ impl AxisResolution {
     }
 
     /// Whether the data leave the functions open at coordinate `q`: between the positions of
-    /// an axis whose readings contradict the interpolation there.
+    /// an axis whose readings contradict the interpolation there, but for the positions whose
+    /// readings touch the functions (there the readings speak, and the interpolation's
+    /// uncertainty with its straight-run bound stands).
     pub fn leaves_open(&self, q: f64) -> bool {
-        self.is_contradicted() && self.interpolates(q)
+        let touched = match self {
+            AxisResolution::AtPositions { touched, tolerance_m, .. } => near_any(touched, q, *tolerance_m),
+            AxisResolution::Everywhere => false,
+        };
+        self.is_contradicted() && self.interpolates(q) && !touched
     }
+}
+
+/// Whether `q` lies within `tolerance_m` of one of sorted `positions`.
+fn near_any(positions: &[f64], q: f64, tolerance_m: f64) -> bool {
+    let i = positions.partition_point(|&p| p < q);
+    let near = |k: usize| positions.get(k).is_some_and(|&p| (p - q).abs() <= tolerance_m);
+    near(i) || (i > 0 && near(i - 1))
 }
 
 /// Median spacing of sorted `positions` (zero for fewer than two).
@@ -411,7 +452,7 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
         let r = &unc.resolution[a.index()];
         if let Some(s) = r.interpolation_scale_at(a.coord(x)) {
             interpolated = true;
-            between_contradicted |= r.is_contradicted();
+            between_contradicted |= r.leaves_open(a.coord(x));
             scale = Some(scale.map_or(s, |t| t.max(s)));
         }
     }
@@ -606,19 +647,25 @@ mod tests {
     use crate::repr::Representation;
     use crate::topology::Topology;
 
-    /// X's positioning error a tent (0 at the ends, 1 um mid-way), measured at the ends of X
-    /// only: between them the readings cannot tell the tent from its chord (zero), and the
-    /// uncertainty there says so, `d^2 / 3` with `d` the tent's height above the chord, even where
-    /// the fit's own covariance is zero; at the ends nothing is added.
-    #[test]
-    fn between_the_positions_the_uncertainty_holds_the_chord() {
+    /// X's positioning error a tent on linear tables of 3 nodes (0 at the ends, 1 um mid-way),
+    /// EXX, a zero covariance and no undetermined directions.
+    fn tent() -> (ErrorModel, ErrorFunction, Mat<f64>, Mat<f64>) {
         let travel = Travel::new([0.0, 1.0], [0.0, 1.0], [0.0, 1.0]);
         let layout = ModelLayout::uniform(Topology::parse("FXYZ").unwrap(), travel, Representation::Table { nodes: 3 });
         let mut model = ErrorModel::zero(layout);
         let exx = ErrorFunction::parse("EXX").unwrap();
         model.coeffs_mut(exx).copy_from_slice(&[0.0, 1e-6, 0.0]);
         let n = model.layout.n_params;
-        let (cov, none) = (Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, 0));
+        (model, exx, Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, 0))
+    }
+
+    /// X's positioning error a tent (0 at the ends, 1 um mid-way), measured at the ends of X
+    /// only: between them the readings cannot tell the tent from its chord (zero), and the
+    /// uncertainty there says so, `d^2 / 3` with `d` the tent's height above the chord, even where
+    /// the fit's own covariance is zero; at the ends nothing is added.
+    #[test]
+    fn between_the_positions_the_uncertainty_holds_the_chord() {
+        let (mut model, exx, cov, none) = tent();
         let resolution = [AxisResolution::at(vec![0.0, 1.0]), AxisResolution::Everywhere, AxisResolution::Everywhere];
         let unc = Uncertainty::new(&cov, &none).with_resolution(&resolution);
         let p = Vector3::zeros();
@@ -640,5 +687,30 @@ mod tests {
         // A function straight between the positions has nothing to add.
         model.coeffs_mut(exx).copy_from_slice(&[0.0, 0.5e-6, 1e-6]);
         assert!(function_sigma(&model, &unc, exx, 0.4) <= 1e-15);
+    }
+
+    /// A position whose readings touch the functions without measuring them (a tracer's stop
+    /// between a beam's points) is interpolated like any coordinate between the measured
+    /// positions, the straight-run bound included; where the readings contradict the
+    /// interpolation it is still given a number, and only the coordinates no reading speaks
+    /// for are left open.
+    #[test]
+    fn a_touched_position_is_interpolated_and_given_a_number_where_the_interpolation_is_contradicted() {
+        let (model, exx, cov, none) = tent();
+        let x = AxisResolution::at(vec![0.0, 0.2, 1.0]).measured_at(vec![0.0, 1.0], vec![0.2]);
+        assert!(x.interpolates(0.2) && x.interpolates(0.5) && !x.interpolates(1.0));
+        assert_eq!(x.neighbours(0.2), Some((0.0, 1.0)));
+        let resolution = [x.clone(), AxisResolution::Everywhere, AxisResolution::Everywhere];
+        let unc = Uncertainty::new(&cov, &none).with_resolution(&resolution);
+        // The tent is 0.4 um above its chord at 0.2: variance (0.4 um)^2 / 3.
+        assert!((function_sigma(&model, &unc, exx, 0.2) - 0.4e-6 / 3f64.sqrt()).abs() <= 1e-15);
+        let contradicted = [x.contradicted(), AxisResolution::Everywhere, AxisResolution::Everywhere];
+        let unc = Uncertainty::new(&cov, &none).with_resolution(&contradicted);
+        let at = |q: f64| predict(&model, &unc, &Point3::new(q, 0.3, 0.7), &Vector3::zeros());
+        assert!(at(0.2).is_determined() && at(0.2).interpolated, "the touched position is given, interpolated");
+        assert!(!at(0.5).is_determined(), "between the positions no reading speaks for");
+        assert!(at(1.0).is_determined() && !at(1.0).interpolated);
+        assert!(function_sigma(&model, &unc, exx, 0.2).is_finite());
+        assert!(function_sigma(&model, &unc, exx, 0.5).is_infinite());
     }
 }
