@@ -425,12 +425,8 @@ pub fn solve_auto(
         for a in Axis::ALL {
             let r = &mut out.solution.resolution[a.index()];
             if let AxisResolution::AtPositions { positions, tolerance_m, .. } = &*r {
-                let measured = interpolation::measured_positions(f, &layout, obs, a, positions, *tolerance_m);
-                let touched = positions
-                    .iter()
-                    .copied()
-                    .filter(|q| measured.binary_search_by(|m| m.total_cmp(q)).is_err())
-                    .collect();
+                let (measured, touched) =
+                    interpolation::measured_positions(f, &layout, obs, a, positions, *tolerance_m);
                 *r = std::mem::take(r).measured_at(measured, touched);
             }
         }

@@ -186,7 +186,8 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
 pub const MEASURED_SHARE: f64 = 0.5;
 
 /// The positions of `axis` (sorted; a reading within `tolerance_m` of one is at it) at which the
-/// readings measure the axis's error functions, not just touch them: the two ends, each inner
+/// readings measure the axis's error functions, and those they only touch (both sorted): the
+/// measured are the two ends, each inner
 /// position without whose readings the fit does not hold, and each whose own readings remove
 /// of some function's variance there (its variance as fitted against the fit's without them,
 /// [`Fit::deletion_variances`]) at least [`MEASURED_SHARE`] of what the best-measured inner
@@ -215,14 +216,14 @@ pub fn measured_positions(
     axis: Axis,
     positions: &[f64],
     tolerance_m: f64,
-) -> Vec<f64> {
+) -> (Vec<f64>, Vec<f64>) {
     let functions: Vec<ErrorFunction> = ErrorFunction::all().into_iter().filter(|f| f.axis == axis).collect();
     let n_u = functions.iter().map(|&f| layout.range(f).end).max().unwrap_or(0);
     let inner = positions.get(1..positions.len().saturating_sub(1)).unwrap_or(&[]);
     let sets: Vec<(Vec<usize>, Mat<f64>)> = inner
         .iter()
         .map(|&q| {
-            let set = (0..obs.len()).filter(|&i| (axis.coord(&obs.x[i]) - q).abs() <= tolerance_m).collect();
+            let set = readings_at(obs, axis, q, tolerance_m);
             let mut s = Mat::<f64>::zeros(n_u, functions.len());
             for (j, &f) in functions.iter().enumerate() {
                 let start = layout.range(f).start;
@@ -246,13 +247,16 @@ pub fn measured_positions(
         })
         .collect();
     let best = shares.iter().flatten().copied().fold(0.0, f64::max);
-    let measured = shares.iter().map(|s| s.is_none_or(|s| s >= MEASURED_SHARE * best));
-    let mut kept: Vec<f64> = positions.first().copied().into_iter().collect();
-    kept.extend(inner.iter().zip(measured).filter_map(|(&q, m)| m.then_some(q)));
-    if positions.len() > 1 {
-        kept.extend(positions.last().copied());
+    let (mut measured, mut touched) = (Vec::new(), Vec::new());
+    for (i, &q) in positions.iter().enumerate() {
+        let inner = i > 0 && i + 1 < positions.len();
+        if inner && shares[i - 1].is_some_and(|s| s < MEASURED_SHARE * best) {
+            touched.push(q);
+        } else {
+            measured.push(q);
+        }
     }
-    kept
+    (measured, touched)
 }
 
 /// The factor on the interpolation's variance that the left-out positions of a campaign's checked
@@ -304,11 +308,12 @@ fn holm(checks: &mut [InterpolationCheck]) {
 /// extrapolate), positions without a reading omitted.
 fn left_out_sets(obs: &Observations, axis: Axis, positions: &[f64], tolerance_m: f64) -> Vec<Vec<usize>> {
     let inner = positions.get(1..positions.len().saturating_sub(1)).unwrap_or(&[]);
-    inner
-        .iter()
-        .map(|&q| (0..obs.len()).filter(|&i| (axis.coord(&obs.x[i]) - q).abs() <= tolerance_m).collect())
-        .filter(|s: &Vec<usize>| !s.is_empty())
-        .collect()
+    inner.iter().map(|&q| readings_at(obs, axis, q, tolerance_m)).filter(|s: &Vec<usize>| !s.is_empty()).collect()
+}
+
+/// The readings at coordinate `q` of `axis`, within `tolerance_m`.
+fn readings_at(obs: &Observations, axis: Axis, q: f64, tolerance_m: f64) -> Vec<usize> {
+    (0..obs.len()).filter(|&i| (axis.coord(&obs.x[i]) - q).abs() <= tolerance_m).collect()
 }
 
 #[cfg(test)]
