@@ -422,13 +422,12 @@ pub fn solve_auto(
     let own = held.as_ref().map(|f| check_axes_on(f, &out.solution, &cx)).unwrap_or_default();
     let stiffer = stiffer_checks(&out, &cx);
     if let Some(f) = &held {
-        for a in Axis::ALL {
+        let bounded = bounded_axes(&out.solution);
+        let split = interpolation::measured_positions(f, &layout, obs, &bounded);
+        let axes: Vec<Axis> = bounded.iter().map(|&(a, ..)| a).collect();
+        for (a, (measured, touched)) in axes.into_iter().zip(split) {
             let r = &mut out.solution.resolution[a.index()];
-            if let AxisResolution::AtPositions { positions, tolerance_m, .. } = &*r {
-                let (measured, touched) =
-                    interpolation::measured_positions(f, &layout, obs, a, positions, *tolerance_m);
-                *r = std::mem::take(r).measured_at(measured, touched);
-            }
+            *r = std::mem::take(r).measured_at(measured, touched);
         }
     }
     // Between the positions of a checked axis the interpolation's variance is what leaving

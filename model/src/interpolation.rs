@@ -185,8 +185,9 @@ pub fn check_axes(fit: &Fit<'_>, obs: &Observations, axes: &[(Axis, &[f64], f64)
 /// function's variance for it to count as measured ([`measured_positions`]).
 pub const MEASURED_SHARE: f64 = 0.5;
 
-/// The positions of `axis` (sorted; a reading within `tolerance_m` of one is at it) at which the
-/// readings measure the axis's error functions, and those they only touch (both sorted): the
+/// For each of `axes` (with its positions, sorted, and the tolerance within which a reading is at
+/// one), the positions at which the readings measure the axis's error functions, and those they
+/// only touch (both sorted): the
 /// measured are the two ends, each inner
 /// position without whose readings the fit does not hold, and each whose own readings remove
 /// of some function's variance there (its variance as fitted against the fit's without them,
@@ -213,50 +214,70 @@ pub fn measured_positions(
     fit: &Fit<'_>,
     layout: &ModelLayout,
     obs: &Observations,
+    axes: &[(Axis, &[f64], f64)],
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let per_axis: Vec<Vec<(Vec<usize>, Mat<f64>)>> =
+        axes.iter().map(|&(a, positions, tol)| inner_position_sets(layout, obs, a, positions, tol)).collect();
+    let lens: Vec<usize> = per_axis.iter().map(Vec::len).collect();
+    // One pass of the fit's rows for every axis's positions.
+    let all: Vec<(Vec<usize>, Mat<f64>)> = per_axis.into_iter().flatten().collect();
+    let mut got = fit.deletion_variances(&all).into_iter();
+    axes.iter()
+        .zip(lens)
+        .map(|(&(_, positions, _), len)| {
+            // The largest share of any function's variance that each inner position's own
+            // readings remove; `None` where the fit does not hold without them (then they
+            // measure it).
+            let shares: Vec<Option<f64>> = got
+                .by_ref()
+                .take(len)
+                .map(|v| {
+                    v.map(|v| {
+                        v.iter()
+                            .filter(|&&(_, without)| without > 0.0)
+                            .map(|&(with, without)| 1.0 - with / without)
+                            .fold(0.0, f64::max)
+                    })
+                })
+                .collect();
+            let best = shares.iter().flatten().copied().fold(0.0, f64::max);
+            let (mut measured, mut touched) = (Vec::new(), Vec::new());
+            for (i, &q) in positions.iter().enumerate() {
+                let inner = i > 0 && i + 1 < positions.len();
+                if inner && shares[i - 1].is_some_and(|s| s < MEASURED_SHARE * best) {
+                    touched.push(q);
+                } else {
+                    measured.push(q);
+                }
+            }
+            (measured, touched)
+        })
+        .collect()
+}
+
+/// The readings at each inner position of `axis` and the rows selecting each of the axis's
+/// functions' values there (`n_u x 6`, over the error model's coefficients).
+fn inner_position_sets(
+    layout: &ModelLayout,
+    obs: &Observations,
     axis: Axis,
     positions: &[f64],
     tolerance_m: f64,
-) -> (Vec<f64>, Vec<f64>) {
+) -> Vec<(Vec<usize>, Mat<f64>)> {
     let functions: Vec<ErrorFunction> = ErrorFunction::all().into_iter().filter(|f| f.axis == axis).collect();
     let n_u = functions.iter().map(|&f| layout.range(f).end).max().unwrap_or(0);
     let inner = positions.get(1..positions.len().saturating_sub(1)).unwrap_or(&[]);
-    let sets: Vec<(Vec<usize>, Mat<f64>)> = inner
+    inner
         .iter()
         .map(|&q| {
-            let set = readings_at(obs, axis, q, tolerance_m);
             let mut s = Mat::<f64>::zeros(n_u, functions.len());
             for (j, &f) in functions.iter().enumerate() {
                 let start = layout.range(f).start;
                 layout.basis(f).visit(q, false, |i, v| s[(start + i, j)] = v);
             }
-            (set, s)
+            (readings_at(obs, axis, q, tolerance_m), s)
         })
-        .collect();
-    // The largest share of any function's variance that each position's own readings remove;
-    // `None` where the fit does not hold without them (then they measure it).
-    let shares: Vec<Option<f64>> = fit
-        .deletion_variances(&sets)
-        .into_iter()
-        .map(|v| {
-            v.map(|v| {
-                v.iter()
-                    .filter(|&&(_, without)| without > 0.0)
-                    .map(|&(with, without)| 1.0 - with / without)
-                    .fold(0.0, f64::max)
-            })
-        })
-        .collect();
-    let best = shares.iter().flatten().copied().fold(0.0, f64::max);
-    let (mut measured, mut touched) = (Vec::new(), Vec::new());
-    for (i, &q) in positions.iter().enumerate() {
-        let inner = i > 0 && i + 1 < positions.len();
-        if inner && shares[i - 1].is_some_and(|s| s < MEASURED_SHARE * best) {
-            touched.push(q);
-        } else {
-            measured.push(q);
-        }
-    }
-    (measured, touched)
+        .collect()
 }
 
 /// The factor on the interpolation's variance that the left-out positions of a campaign's checked
