@@ -410,6 +410,12 @@ pub struct MeasuredPositions {
     /// interpolation is contradicted. Absent (none) in files from before the distinction.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub touched_positions_m: Vec<f64>,
+    /// For each of `touched_positions_m`, the share of its least-pinned function's variance
+    /// that its own readings remove: what they add to the interpolation there
+    /// (`volcal::predict::with_own_readings`). Absent (none) in files from before it: the
+    /// straight-run bound then stands alone.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub touched_shares: Vec<f64>,
     /// The readings contradict the interpolation between the positions
     /// (`volcal::interpolation`): the error between them is not determined. Absent (false) in
     /// files from before the check.
@@ -509,15 +515,21 @@ impl ModelFile {
             measured_positions: Axis::ALL
                 .iter()
                 .filter_map(|&a| match &sol.resolution[a.index()] {
-                    AxisResolution::AtPositions { positions, touched, contradicted, interpolation_scale, .. } => {
-                        Some(MeasuredPositions {
-                            axis: a.letter().to_string(),
-                            positions_m: positions.clone(),
-                            touched_positions_m: touched.clone(),
-                            interpolation_contradicted: *contradicted,
-                            interpolation_variance_scale: *interpolation_scale,
-                        })
-                    }
+                    AxisResolution::AtPositions {
+                        positions,
+                        touched,
+                        touched_share,
+                        contradicted,
+                        interpolation_scale,
+                        ..
+                    } => Some(MeasuredPositions {
+                        axis: a.letter().to_string(),
+                        positions_m: positions.clone(),
+                        touched_positions_m: touched.clone(),
+                        touched_shares: touched_share.clone(),
+                        interpolation_contradicted: *contradicted,
+                        interpolation_variance_scale: *interpolation_scale,
+                    }),
                     AxisResolution::Everywhere => None,
                 })
                 .collect(),
@@ -542,12 +554,26 @@ impl ModelFile {
             if !increasing(t) {
                 bail!("field measured_positions[{j}].touched_positions_m: positions must be finite and increasing");
             }
+            let shares = &m.touched_shares;
+            if !(shares.is_empty() || shares.len() == t.len()) {
+                bail!(
+                    "field measured_positions[{j}].touched_shares: one per touched position ({}), got {}",
+                    t.len(),
+                    shares.len()
+                );
+            }
+            if let Some(v) = shares.iter().find(|v| !(v.is_finite() && (0.0..1.0).contains(*v))) {
+                bail!("field measured_positions[{j}].touched_shares: each must lie in [0, 1), got {v}");
+            }
             let s = m.interpolation_variance_scale;
             if !(s.is_finite() && s > 0.0) {
                 bail!("field measured_positions[{j}].interpolation_variance_scale: must be a positive number, got {s}");
             }
             let r = AxisResolution::at(m.positions_m.clone())
-                .measured_at(m.positions_m.clone(), t.clone())
+                .measured_at(
+                    m.positions_m.clone(),
+                    t.iter().enumerate().map(|(k, &q)| (q, shares.get(k).copied().unwrap_or(0.0))).collect(),
+                )
                 .with_interpolation_scale(s);
             out[a.index()] = if m.interpolation_contradicted { r.contradicted() } else { r };
         }
@@ -687,7 +713,7 @@ mod tests {
         // A factor with a full 17-digit mantissa, as the interpolation check writes them, and a
         // position the readings touch without measuring it.
         sol.resolution[1] = AxisResolution::at(vec![0.0, 0.1, 0.2, 0.3])
-            .measured_at(vec![0.0, 0.2, 0.3], vec![0.1])
+            .measured_at(vec![0.0, 0.2, 0.3], vec![(0.1, 0.3)])
             .with_interpolation_scale(1.935531796686672);
         let path = std::env::temp_dir().join(format!("volcal-roundtrip-{}.json", std::process::id()));
         ModelFile::from_solution(&sol, &prep.obs.groups, Provenance::default()).write(&path).unwrap();
@@ -711,5 +737,17 @@ mod tests {
         std::fs::remove_file(&path).ok();
         let err = err.expect("decreasing touched positions refused");
         assert!(err.contains("measured_positions[0].touched_positions_m"), "{err}");
+
+        // Nor a share outside [0, 1), or one too many.
+        for bad in [serde_json::json!([1.5]), serde_json::json!([0.3, 0.2])] {
+            ModelFile::from_solution(&sol, &prep.obs.groups, Provenance::default()).write(&path).unwrap();
+            let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            v["measured_positions"][0]["touched_shares"] = bad.clone();
+            std::fs::write(&path, v.to_string()).unwrap();
+            let err = load(&path).err().map(|e| format!("{e:#}"));
+            std::fs::remove_file(&path).ok();
+            let err = err.unwrap_or_else(|| panic!("touched shares {bad} refused"));
+            assert!(err.contains("measured_positions[0].touched_shares"), "{err}");
+        }
     }
 }

@@ -425,9 +425,9 @@ pub fn solve_auto(
         let bounded = bounded_axes(&out.solution);
         let split = interpolation::measured_positions(f, &layout, obs, &bounded);
         let axes: Vec<Axis> = bounded.iter().map(|&(a, ..)| a).collect();
-        for (a, (measured, touched)) in axes.into_iter().zip(split) {
+        for (a, kinds) in axes.into_iter().zip(split) {
             let r = &mut out.solution.resolution[a.index()];
-            *r = std::mem::take(r).measured_at(measured, touched);
+            *r = std::mem::take(r).measured_at(kinds.measured, kinds.touched);
         }
     }
     // Between the positions of a checked axis the interpolation's variance is what leaving

@@ -187,7 +187,9 @@ pub const MEASURED_SHARE: f64 = 0.5;
 
 /// For each of `axes` (with its positions, sorted, and the tolerance within which a reading is at
 /// one), the positions at which the readings measure the axis's error functions, and those they
-/// only touch (both sorted): the
+/// only touch with the share of every function's variance their readings remove, the least
+/// over the axis's functions (both sorted; what they still add to the interpolation there,
+/// [`crate::predict::with_own_readings`]): the
 /// measured are the two ends, each inner
 /// position without whose readings the fit does not hold, and each whose own readings remove
 /// of some function's variance there (its variance as fitted against the fit's without them,
@@ -215,7 +217,7 @@ pub fn measured_positions(
     layout: &ModelLayout,
     obs: &Observations,
     axes: &[(Axis, &[f64], f64)],
-) -> Vec<(Vec<f64>, Vec<f64>)> {
+) -> Vec<PositionKinds> {
     let per_axis: Vec<Vec<(Vec<usize>, Mat<f64>)>> =
         axes.iter().map(|&(a, positions, tol)| inner_position_sets(layout, obs, a, positions, tol)).collect();
     let lens: Vec<usize> = per_axis.iter().map(Vec::len).collect();
@@ -225,10 +227,10 @@ pub fn measured_positions(
     axes.iter()
         .zip(lens)
         .map(|(&(_, positions, _), len)| {
-            // The largest share of any function's variance that each inner position's own
-            // readings remove; `None` where the fit does not hold without them (then they
-            // measure it).
-            let shares: Vec<Option<f64>> = got
+            // The largest and the smallest share of any function's variance that each inner
+            // position's own readings remove; `None` where the fit does not hold without them
+            // (then they measure it).
+            let shares: Vec<Option<(f64, f64)>> = got
                 .by_ref()
                 .take(len)
                 .map(|v| {
@@ -236,23 +238,34 @@ pub fn measured_positions(
                         v.iter()
                             .filter(|&&(_, without)| without > 0.0)
                             .map(|&(with, without)| 1.0 - with / without)
-                            .fold(0.0, f64::max)
+                            .fold((0.0, 1.0), |(hi, lo): (f64, f64), s| (hi.max(s), lo.min(s)))
                     })
                 })
                 .collect();
-            let best = shares.iter().flatten().copied().fold(0.0, f64::max);
+            let best = shares.iter().flatten().map(|s| s.0).fold(0.0, f64::max);
             let (mut measured, mut touched) = (Vec::new(), Vec::new());
             for (i, &q) in positions.iter().enumerate() {
                 let inner = i > 0 && i + 1 < positions.len();
-                if inner && shares[i - 1].is_some_and(|s| s < MEASURED_SHARE * best) {
-                    touched.push(q);
-                } else {
-                    measured.push(q);
+                match shares.get(i.wrapping_sub(1)).copied().flatten() {
+                    // What the position adds to its interpolation is what it adds to every
+                    // function: the least-pinned one's share.
+                    Some((most, least)) if inner && most < MEASURED_SHARE * best => touched.push((q, least.max(0.0))),
+                    _ => measured.push(q),
                 }
             }
-            (measured, touched)
+            PositionKinds { measured, touched }
         })
         .collect()
+}
+
+/// An axis's positions by what their readings do ([`measured_positions`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PositionKinds {
+    /// Positions the readings measure, sorted.
+    pub measured: Vec<f64>,
+    /// Positions the readings only touch, sorted, each with the least share of a function's
+    /// variance there that its readings remove.
+    pub touched: Vec<(f64, f64)>,
 }
 
 /// The readings at each inner position of `axis` and the rows selecting each of the axis's

@@ -181,7 +181,17 @@ pub fn predict_positioning(
                 (true, false) => 0.0,
                 (true, true) => {
                     let scale = start_scale.unwrap_or(1.0).max(scale_at.unwrap_or(1.0));
-                    (quadratic_form(cov, &g) * scale + (shape(&x) + start_shape).powi(2)).max(0.0).sqrt()
+                    let (base, bound) = (quadratic_form(cov, &g) * scale, (shape(&x) + start_shape).powi(2));
+                    let share = [unc.touched_share_at(&x), unc.touched_share_at(&line.start)]
+                        .into_iter()
+                        .flatten()
+                        .reduce(f64::min);
+                    match share {
+                        Some(share) => crate::predict::with_own_readings(base, bound, share),
+                        None => base + bound,
+                    }
+                    .max(0.0)
+                    .sqrt()
                 }
             };
             PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m, interpolated: start_scale.or(scale_at).is_some() }
