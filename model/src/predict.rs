@@ -75,20 +75,11 @@ impl AxisResolution {
 
     /// The same, with the interpolation's variance between the positions scaled by `scale`
     /// (what the leave-one-position-out checks show; a resolution everywhere interpolates nothing).
-    pub fn with_interpolation_scale(self, scale: f64) -> AxisResolution {
-        match self {
-            AxisResolution::AtPositions { positions, touched, touched_share, tolerance_m, contradicted, .. } => {
-                AxisResolution::AtPositions {
-                    positions,
-                    touched,
-                    touched_share,
-                    tolerance_m,
-                    contradicted,
-                    interpolation_scale: scale,
-                }
-            }
-            AxisResolution::Everywhere => AxisResolution::Everywhere,
+    pub fn with_interpolation_scale(mut self, scale: f64) -> AxisResolution {
+        if let AxisResolution::AtPositions { interpolation_scale, .. } = &mut self {
+            *interpolation_scale = scale;
         }
+        self
     }
 
     /// The same, measured at `positions` only (sorted, a subset of the positions), the rest
@@ -97,22 +88,13 @@ impl AxisResolution {
     /// there the functions are interpolated between the measured positions, what the readings
     /// add included ([`with_own_readings`]). The tolerance is the measured positions' own, as
     /// [`AxisResolution::at`] gives it.
-    pub fn measured_at(self, positions: Vec<f64>, touched: Vec<(f64, f64)>) -> AxisResolution {
-        match self {
-            AxisResolution::AtPositions { contradicted, interpolation_scale, .. } => {
-                let tolerance_m = median_spacing(&positions) * 0.01;
-                let (touched, touched_share) = touched.into_iter().unzip();
-                AxisResolution::AtPositions {
-                    positions,
-                    touched,
-                    touched_share,
-                    tolerance_m,
-                    contradicted,
-                    interpolation_scale,
-                }
-            }
-            AxisResolution::Everywhere => AxisResolution::Everywhere,
+    pub fn measured_at(mut self, measured: Vec<f64>, touched: Vec<(f64, f64)>) -> AxisResolution {
+        if let AxisResolution::AtPositions { positions, touched: at, touched_share, tolerance_m, .. } = &mut self {
+            *tolerance_m = median_spacing(&measured) * 0.01;
+            *positions = measured;
+            (*at, *touched_share) = touched.into_iter().unzip();
         }
+        self
     }
 
     /// The scale of the variance of a prediction at coordinate `q`: the interpolation's
@@ -128,20 +110,11 @@ impl AxisResolution {
 
     /// The same, with the readings contradicting the interpolation between the positions (a
     /// resolution everywhere has nothing interpolated to contradict and stays as it is).
-    pub fn contradicted(self) -> AxisResolution {
-        match self {
-            AxisResolution::AtPositions {
-                positions, touched, touched_share, tolerance_m, interpolation_scale, ..
-            } => AxisResolution::AtPositions {
-                positions,
-                touched,
-                touched_share,
-                tolerance_m,
-                contradicted: true,
-                interpolation_scale,
-            },
-            AxisResolution::Everywhere => AxisResolution::Everywhere,
+    pub fn contradicted(mut self) -> AxisResolution {
+        if let AxisResolution::AtPositions { contradicted, .. } = &mut self {
+            *contradicted = true;
         }
+        self
     }
 
     /// Whether coordinate `q` lies between measured positions (not at one).
@@ -169,12 +142,7 @@ impl AxisResolution {
     pub fn touched_share_at(&self, q: f64) -> Option<f64> {
         match self {
             AxisResolution::AtPositions { touched, touched_share, tolerance_m, .. } => {
-                let i = touched.partition_point(|&p| p < q);
-                [i.checked_sub(1), Some(i)]
-                    .into_iter()
-                    .flatten()
-                    .find(|&k| touched.get(k).is_some_and(|&p| (p - q).abs() <= *tolerance_m))
-                    .map(|k| touched_share.get(k).copied().unwrap_or(0.0))
+                near(touched, q, *tolerance_m).map(|k| touched_share.get(k).copied().unwrap_or(0.0))
             }
             AxisResolution::Everywhere => None,
         }
@@ -200,9 +168,16 @@ impl AxisResolution {
 
 /// Whether `q` lies within `tolerance_m` of one of sorted `positions`.
 fn near_any(positions: &[f64], q: f64, tolerance_m: f64) -> bool {
+    near(positions, q, tolerance_m).is_some()
+}
+
+/// The index of the one of sorted `positions` that `q` lies within `tolerance_m` of, if any.
+fn near(positions: &[f64], q: f64, tolerance_m: f64) -> Option<usize> {
     let i = positions.partition_point(|&p| p < q);
-    let near = |k: usize| positions.get(k).is_some_and(|&p| (p - q).abs() <= tolerance_m);
-    near(i) || (i > 0 && near(i - 1))
+    [Some(i), i.checked_sub(1)]
+        .into_iter()
+        .flatten()
+        .find(|&k| positions.get(k).is_some_and(|&p| (p - q).abs() <= tolerance_m))
 }
 
 /// Median spacing of sorted `positions` (zero for fewer than two).
