@@ -426,7 +426,8 @@ fn chord_offsets<'a>(
 /// position's readings (`base / (1 - share)`) plus the straight-run `bound`, combined with what
 /// the position's own readings know (the information `share / base` they add to the fit),
 /// as two independent estimates are: `1 / (1 / (base / (1 - share) + bound) + share / base)`.
-/// `base` where the bound vanishes, `base / share` at most however large it is.
+/// `base` where the bound vanishes, `base / share` at most however large it is; `base + bound`
+/// for a share of 0 (anywhere but a touched position: the readings there add nothing).
 ///
 /// Why: until stop 78 a touched position was given the whole bound on top of the fit's
 /// variance, as if its readings said nothing. On a smooth machine whose curve bends far from its
@@ -532,10 +533,7 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
             } else {
                 Matrix3::zeros()
             };
-            match unc.touched_share_at(x) {
-                Some(share) => with_own_readings_cov(&base, &bound, share),
-                None => base + bound,
-            }
+            with_own_readings_cov(&base, &bound, unc.touched_share_at(x).unwrap_or(0.0))
         },
         undetermined,
         interpolated,
@@ -677,11 +675,7 @@ pub fn function_sigma(model: &ErrorModel, unc: &Uncertainty<'_>, f: ErrorFunctio
         let d = off_chord(q, model.function_value(f, q), ends, |q| model.function_value(f, q));
         d * d * CHORD_BOUND_VARIANCE
     });
-    let v = match r.touched_share_at(q) {
-        Some(share) => with_own_readings(v * scale, shape, share),
-        None => v * scale + shape,
-    };
-    v.max(0.0).sqrt()
+    with_own_readings(v * scale, shape, r.touched_share_at(q).unwrap_or(0.0)).max(0.0).sqrt()
 }
 
 /// Value and range of a function over its travel, for reports (the paper's Table 2).

@@ -152,6 +152,8 @@ pub fn predict_positioning(
     let with_cov = cov.nrows() == n_params && cov.ncols() == n_params;
     let start_open = unc.leaves_open_at(&line.start);
     let start_scale = unc.interpolation_scale_at(&line.start);
+    // The share of a touched start's own readings (`crate::predict::with_own_readings`).
+    let start_share = unc.touched_share_at(&line.start);
     // The interpolation's shape along the line at a point
     // ([`crate::predict::interpolation_shape_covariance`]) as the standard uncertainty of its
     // bound. At the target and at the start the two bounds are not independent (the same
@@ -182,16 +184,10 @@ pub fn predict_positioning(
                 (true, true) => {
                     let scale = start_scale.unwrap_or(1.0).max(scale_at.unwrap_or(1.0));
                     let (base, bound) = (quadratic_form(cov, &g) * scale, (shape(&x) + start_shape).powi(2));
-                    let share = [unc.touched_share_at(&x), unc.touched_share_at(&line.start)]
-                        .into_iter()
-                        .flatten()
-                        .reduce(f64::min);
-                    match share {
-                        Some(share) => crate::predict::with_own_readings(base, bound, share),
-                        None => base + bound,
-                    }
-                    .max(0.0)
-                    .sqrt()
+                    // The smaller of the target's and the start's, where either is touched; none
+                    // (share 0) elsewhere.
+                    let share = [unc.touched_share_at(&x), start_share].into_iter().flatten().reduce(f64::min);
+                    crate::predict::with_own_readings(base, bound, share.unwrap_or(0.0)).max(0.0).sqrt()
                 }
             };
             PositioningPoint { s_m: s, x, deviation_m: dev, sigma_m, interpolated: start_scale.or(scale_at).is_some() }
