@@ -286,6 +286,9 @@ pub fn predict_cmd(model_path: &Path, points: &Path, out: &Path) -> Result<usize
     Ok(pts.len())
 }
 
+/// Most grid points `volcal map` writes (about 2 GB of CSV).
+const MAP_MAX_POINTS: usize = 20_000_000;
+
 /// `volcal map`: the volumetric error on a grid.
 pub fn map_cmd(model_path: &Path, step: f64, probe: Vector3<f64>, out: &Path) -> Result<usize> {
     if !(step > 0.0 && step.is_finite()) {
@@ -293,10 +296,15 @@ pub fn map_cmd(model_path: &Path, step: f64, probe: Vector3<f64>, out: &Path) ->
     }
     let loaded = model_file::load(model_path)?;
     let (model, unc) = (&loaded.model, loaded.uncertainty());
-    let pts = predict::grid(&model.layout.travel, step);
-    if pts.len() > 20_000_000 {
-        bail!("--step {step} m gives {} grid points; use a coarser step (is it in millimetres?)", pts.len());
+    // Counted before the grid is built: a step in millimetres taken as metres would ask for
+    // more points than memory holds.
+    let count = predict::grid_len(&model.layout.travel, step);
+    if count > MAP_MAX_POINTS as f64 {
+        bail!(
+            "--step {step} m gives {count:.3e} grid points (at most {MAP_MAX_POINTS}); use a coarser step (is it in millimetres?)"
+        );
     }
+    let pts = predict::grid(&model.layout.travel, step);
     let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
     writeln!(w, "x_m,y_m,z_m,px_m,py_m,pz_m,ex_m,ey_m,ez_m,e_norm_m,u95_m,determined,interpolated")?;
@@ -356,14 +364,19 @@ pub fn report_cmd(model_path: &Path, compensation_dir: Option<&Path>, points: us
                 names.iter().zip(&units).map(|(n, u)| format!("u_{}_{u}", n.to_ascii_lowercase())).collect();
             writeln!(
                 w,
-                "# compensation table of axis {} ({} gauge); u_ = standard uncertainty",
+                "# compensation table of axis {} ({} gauge); u_ = standard uncertainty; both empty where the data do not determine the function",
                 a.letter(),
                 file.gauge.name()
             )?;
             writeln!(w, "{}_m,{},{}", a.letter().to_ascii_lowercase(), head.join(","), sig.join(","))?;
             for row in predict::compensation_table(model, &unc, a, points) {
-                let v: Vec<String> = row.values.iter().map(|v| v.to_string()).collect();
-                let s: Vec<String> = row.sigmas.iter().map(|v| v.to_string()).collect();
+                // Where the data do not determine a function its uncertainty is infinite and its
+                // value the minimum-norm one, which no controller should apply: both cells are
+                // empty, as in `volcal map` and `volcal predict`.
+                let determined: Vec<bool> = row.sigmas.iter().map(|s| s.is_finite()).collect();
+                let cell = |v: f64, d: bool| if d { v.to_string() } else { String::new() };
+                let v: Vec<String> = row.values.iter().zip(&determined).map(|(&v, &d)| cell(v, d)).collect();
+                let s: Vec<String> = row.sigmas.iter().zip(&determined).map(|(&v, &d)| cell(v, d)).collect();
                 writeln!(w, "{},{},{}", row.q_m, v.join(","), s.join(","))?;
             }
             w.flush()?;

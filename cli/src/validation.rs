@@ -138,7 +138,10 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
                 format!("  {:>8.1}  {:>26}  {:>24}", p.s_m * 1e3, mm(&p.x), "not determined")
             };
             if let Some(k) = r.comparison.as_ref().map(|c| &c.points[i]) {
-                row.push_str(&format!("  {:>11.3}  {:>7.3}", k.measured_m * 1e6, k.difference_m * 1e6));
+                row.push_str(&format!("  {:>11.3}", k.measured_m * 1e6));
+                if k.is_determined() {
+                    row.push_str(&format!("  {:>7.3}", k.difference_m * 1e6));
+                }
             }
             if p.interpolated {
                 row.push_str("  i");
@@ -151,6 +154,15 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
                 "  i: interpolated, at or from a point between the measured positions of an axis the readings resolve only there (e.g. a tracer's stops): a feature shorter than their step is not seen there"
             );
         }
+        let (n, determined) = (r.predicted.len(), r.predicted.iter().filter(|p| p.sigma_m.is_finite()).count());
+        // The predicted figures are over the targets the data determine; say so when that is not
+        // all of them.
+        let over = if determined < n {
+            format!(" (the data determine the prediction at {determined} of the {n} targets; the predicted figures are over those)")
+        } else {
+            String::new()
+        };
+        let um = |v: Option<f64>| v.map_or("not determined".to_string(), |v| format!("{:.3} um", v * 1e6));
         match &r.comparison {
             Some(c) => {
                 let paper = reference
@@ -160,19 +172,18 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
                     .unwrap_or_default();
                 let _ = writeln!(
                     out,
-                    "  positioning error (range of deviations): predicted {:.3} um, interferometer {:.3} um; max |difference| {:.3} um{paper}; max En {:.2}",
-                    c.predicted_range_m * 1e6,
+                    "  positioning error (range of deviations): predicted {}, interferometer {:.3} um; max |difference| {}{paper}; max En {}{over}",
+                    um(c.predicted_range_m),
                     c.measured_range_m * 1e6,
-                    c.max_abs_difference_m * 1e6,
-                    c.max_en
+                    um(c.max_abs_difference_m),
+                    c.max_en.map_or("not determined".to_string(), |e| format!("{e:.2}"))
                 );
             }
             None => {
-                let (lo, hi) = r
-                    .predicted
-                    .iter()
-                    .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.deviation_m), b.max(p.deviation_m)));
-                let _ = writeln!(out, "  positioning error (range of deviations): predicted {:.3} um", (hi - lo) * 1e6);
+                let range = volcal::validate::range(
+                    r.predicted.iter().filter(|p| p.sigma_m.is_finite()).map(|p| p.deviation_m),
+                );
+                let _ = writeln!(out, "  positioning error (range of deviations): predicted {}{over}", um(range));
             }
         }
     }
@@ -180,25 +191,35 @@ pub fn format(results: &[LineResult], reference: &[(&str, f64)]) -> String {
 }
 
 /// Writes all lines as CSV: `line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en,interpolated`
-/// (measurement columns empty without a measurement; `interpolated` 1 as the table's `i`).
+/// (measurement columns empty without a measurement; prediction, difference and `en` empty
+/// where the data do not determine the prediction; `interpolated` 1 as the table's `i`).
 pub fn write_csv(path: &Path, results: &[LineResult]) -> Result<()> {
     let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut w = std::io::BufWriter::new(f);
     writeln!(w, "line,s_m,x_m,y_m,z_m,predicted_m,u_predicted_m,measured_m,u_measured_m,difference_m,en,interpolated")?;
     for r in results {
         for (i, p) in r.predicted.iter().enumerate() {
+            // Where the data do not determine the prediction its cells are empty, as in `volcal
+            // map` and `volcal predict`: the minimum-norm value is no prediction.
+            let determined = p.sigma_m.is_finite();
             let m = r
                 .comparison
                 .as_ref()
                 .map(|c| {
                     let k = &c.points[i];
-                    format!("{},{},{},{}", k.measured_m, k.measured_sigma_m, k.difference_m, k.en)
+                    match (determined, k.en) {
+                        (true, Some(en)) => {
+                            format!("{},{},{},{}", k.measured_m, k.measured_sigma_m, k.difference_m, en)
+                        }
+                        _ => format!("{},{},,", k.measured_m, k.measured_sigma_m),
+                    }
                 })
                 .unwrap_or_else(|| ",,,".into());
+            let predicted = if determined { format!("{},{}", p.deviation_m, p.sigma_m) } else { ",".to_string() };
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{}",
-                r.line.name, p.s_m, p.x.x, p.x.y, p.x.z, p.deviation_m, p.sigma_m, m, p.interpolated as u8
+                "{},{},{},{},{},{},{},{}",
+                r.line.name, p.s_m, p.x.x, p.x.y, p.x.z, predicted, m, p.interpolated as u8
             )?;
         }
     }

@@ -327,6 +327,43 @@ fn rank_deficient_campaign_warns_and_exits_3() {
     assert_eq!(o.status.code(), Some(3), "{t}");
     assert!(t.contains("ECZ") && t.contains("cannot be identified"), "{t}");
     assert!(d.join("m.json").exists());
+    let m = d.join("m.json");
+
+    // What the data do not determine is written as no value, never as a minimum-norm value
+    // beside an infinite uncertainty: the compensation tables leave ECZ's cells empty...
+    let comp = d.join("comp");
+    let o = volcal(&["report", m.to_str().unwrap(), "--compensation-dir", comp.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let z = std::fs::read_to_string(comp.join("compensation_z.csv")).unwrap();
+    let head: Vec<&str> = z.lines().nth(1).unwrap().split(',').collect();
+    let (ecz, u_ecz) =
+        (head.iter().position(|c| *c == "ecz_rad").unwrap(), head.iter().position(|c| *c == "u_ecz_rad").unwrap());
+    for row in z.lines().skip(2) {
+        let f: Vec<&str> = row.split(',').collect();
+        assert_eq!((f[ecz], f[u_ecz]), ("", ""), "{row}");
+    }
+    assert!(!z.contains("inf") && !z.contains("NaN"), "{z}");
+
+    // ... and the validation lines' summary is over the targets the data determine, its CSV
+    // leaving the others' prediction empty (a body diagonal crosses every axis, so ECZ's lever
+    // arms reach it).
+    let lines = d.join("lines.csv");
+    let o = volcal(&["validate", m.to_str().unwrap(), "--diagonals", "--out", lines.to_str().unwrap()]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let csv = std::fs::read_to_string(&lines).unwrap();
+    assert!(!csv.contains("inf") && !csv.contains("NaN"), "{csv}");
+    for row in csv.lines().skip(1) {
+        let f: Vec<&str> = row.split(',').collect();
+        assert_eq!(f[5].is_empty(), f[6].is_empty(), "a prediction and its uncertainty come together: {row}");
+    }
+
+    // A step that would ask for more grid points than memory holds (millimetres taken as
+    // metres) is refused before anything is built.
+    let o = volcal(&["map", m.to_str().unwrap(), "--step", "1e-9", "--out", d.join("map.csv").to_str().unwrap()]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("grid points") && t.contains("coarser step") && !t.contains("panicked"), "{t}");
 }
 
 /// `{kind: auto, tables: true}`: over the paper's linear tables (11 nodes per function), measured

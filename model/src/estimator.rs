@@ -250,7 +250,7 @@ pub enum SolveError {
     NoObservations,
     #[error("tracer station {station}: {reason}")]
     Station { station: u32, reason: String },
-    #[error("the normal equations are singular even after fixing the unidentifiable directions: {0}")]
+    #[error("the normal equations are singular even after fixing the unidentifiable directions ({0}): the readings leave a combination of the parameters undetermined that the identifiability analysis did not single out. Check that the machine file's travel is the one the readings cover (each axis's readings spanning most of its travel) and that the readings move every axis")]
     Singular(String),
 }
 
@@ -1261,9 +1261,9 @@ pub fn fit<'a>(
                 station: st,
                 position: Point3::new(state.d[c], state.d[c + 1], state.d[c + 2]),
                 sigma: Vector3::new(
-                    cov_full[(c, c)].sqrt(),
-                    cov_full[(c + 1, c + 1)].sqrt(),
-                    cov_full[(c + 2, c + 2)].sqrt(),
+                    standard_uncertainty(cov_full[(c, c)]),
+                    standard_uncertainty(cov_full[(c + 1, c + 1)]),
+                    standard_uncertainty(cov_full[(c + 2, c + 2)]),
                 ),
             }
         })
@@ -1275,7 +1275,7 @@ pub fn fit<'a>(
     for e in effects {
         let mut ps = Vec::new();
         for name in e.param_names() {
-            ps.push((name, state.d[k], cov_full[(k, k)].sqrt()));
+            ps.push((name, state.d[k], standard_uncertainty(cov_full[(k, k)])));
             k += 1;
         }
         effects_out.push((e.id().to_string(), ps));
@@ -2169,6 +2169,14 @@ fn reduced_matrix(normal: &Normal, z: &NullSpace, scale: &[f64], pen: Option<&Pe
     z.project(&ns)
 }
 
+/// The square root of a covariance's diagonal entry. A variance is never negative; one that
+/// rounding took below zero (a parameter the fit pins to the rounding level, e.g. a tracer
+/// station a gross reading pushed kilometres away in a fit that did not converge) is zero, not
+/// NaN: a NaN would be written to the model file as `null`, which no command could then load.
+fn standard_uncertainty(variance: f64) -> f64 {
+    variance.max(0.0).sqrt()
+}
+
 /// Cholesky factor of the (damped) reduced matrix.
 struct Reduced {
     llt: faer::linalg::solvers::Llt<f64>,
@@ -2192,7 +2200,16 @@ impl Reduced {
                 m[(i, i)] = d + mu * d.max(1e-12);
             }
         }
-        let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular(format!("{e:?}")))?;
+        let n = m.nrows();
+        let llt = m.llt(Side::Lower).map_err(|e| {
+            SolveError::Singular(match e {
+                faer::linalg::solvers::LltError::NonPositivePivot { index } => {
+                    format!("pivot {} of the {n} free directions not positive", index + 1)
+                }
+                #[allow(unreachable_patterns)]
+                other => format!("{other:?}"),
+            })
+        })?;
         Ok(Reduced { llt })
     }
 }

@@ -541,12 +541,25 @@ pub fn predict(model: &ErrorModel, unc: &Uncertainty<'_>, x: &Point3<f64>, p: &V
     }
 }
 
+/// Intervals of [`grid`] along axis `a`: the travel over `step`, rounded, at least one.
+fn grid_intervals(travel: &Travel, a: Axis, step: f64) -> usize {
+    (((travel.length(a)) / step).round() as usize).max(1)
+}
+
+/// How many points [`grid`] has for `travel` and `step`, without building it: a caller given
+/// the step by a user checks it first (a step in millimetres taken as metres asks for more
+/// points than memory holds). A float, so that no step overflows it.
+pub fn grid_len(travel: &Travel, step: f64) -> f64 {
+    Axis::ALL.iter().map(|&a| grid_intervals(travel, a, step) as f64 + 1.0).product()
+}
+
 /// Regular grid over the travel with spacing `step` (at least 2 points per axis, ends
-/// included).
+/// included). It allocates all [`grid_len`] points: check that first where the step is a
+/// user's.
 pub fn grid(travel: &Travel, step: f64) -> Vec<Point3<f64>> {
     let axis_points = |a: Axis| -> Vec<f64> {
         let [lo, hi] = travel.range(a);
-        let n = (((hi - lo) / step).round() as usize).max(1);
+        let n = grid_intervals(travel, a, step);
         (0..=n).map(|i| lo + (hi - lo) * i as f64 / n as f64).collect()
     };
     let (xs, ys, zs) = (axis_points(Axis::X), axis_points(Axis::Y), axis_points(Axis::Z));

@@ -211,14 +211,25 @@ fn quadratic_form(cov: &Mat<f64>, g: &[(usize, f64)]) -> f64 {
 pub struct ComparedPoint {
     pub s_m: f64,
     pub predicted_m: f64,
+    /// Infinite where the data do not determine the prediction ([`PositioningPoint::sigma_m`]).
     pub predicted_sigma_m: f64,
     pub measured_m: f64,
     pub measured_sigma_m: f64,
     /// Predicted minus measured.
     pub difference_m: f64,
     /// Normalised error `|difference| / (k sqrt(u_pred^2 + u_meas^2))` with k = 2: at most 1
-    /// when the two agree within their expanded uncertainties.
-    pub en: f64,
+    /// when the two agree within their expanded uncertainties. `None` where the data do not
+    /// determine the prediction: an infinite uncertainty would make any difference look like
+    /// agreement.
+    pub en: Option<f64>,
+}
+
+impl ComparedPoint {
+    /// Whether the data determine the prediction at this target, so that its difference from
+    /// the measurement is a test of the model.
+    pub fn is_determined(&self) -> bool {
+        self.predicted_sigma_m.is_finite()
+    }
 }
 
 /// Prediction versus measurement along one line.
@@ -226,18 +237,33 @@ pub struct ComparedPoint {
 pub struct LineComparison {
     pub line: Line,
     pub points: Vec<ComparedPoint>,
-    /// Largest |predicted - measured|, metres (the paper's "maximum difference").
-    pub max_abs_difference_m: f64,
-    /// ISO 230-2 positioning error of the line (range of the mean deviations), predicted.
-    pub predicted_range_m: f64,
-    /// The same from the measurement.
+    /// Targets where the data determine the prediction ([`ComparedPoint::is_determined`]); the
+    /// predicted figures below are over those alone.
+    pub determined: usize,
+    /// Largest |predicted - measured|, metres (the paper's "maximum difference"); `None` when
+    /// no target is determined.
+    pub max_abs_difference_m: Option<f64>,
+    /// ISO 230-2 positioning error of the line (range of the mean deviations), predicted; over
+    /// the determined targets, `None` when fewer than two are.
+    pub predicted_range_m: Option<f64>,
+    /// The same from the measurement, over every target.
     pub measured_range_m: f64,
-    /// Largest normalised error over the targets.
-    pub max_en: f64,
+    /// Largest normalised error over the determined targets.
+    pub max_en: Option<f64>,
+}
+
+/// Range (max - min) of `v`; `None` with fewer than two values, which span no range (the
+/// start alone, where the interferometer is zeroed, says nothing of a line's positioning).
+pub fn range(v: impl Iterator<Item = f64>) -> Option<f64> {
+    let (n, lo, hi) =
+        v.fold((0usize, f64::INFINITY, f64::NEG_INFINITY), |(n, lo, hi), x| (n + 1, lo.min(x), hi.max(x)));
+    (n >= 2).then_some(hi - lo)
 }
 
 /// Compares predicted deviations with measured mean deviations and their standard
-/// uncertainties (same targets, same order).
+/// uncertainties (same targets, same order). Targets whose prediction the data do not
+/// determine are kept with their measurement but left out of the predicted figures: their
+/// value is the minimum-norm one, no prediction.
 pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f64)]) -> LineComparison {
     assert_eq!(predicted.len(), measured.len(), "prediction and measurement must have the same targets");
     let points: Vec<ComparedPoint> = predicted
@@ -246,7 +272,13 @@ pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f6
         .map(|(p, &(m, um))| {
             let d = p.deviation_m - m;
             let u = (p.sigma_m.powi(2) + um.powi(2)).sqrt();
-            let en = if u > 0.0 { d.abs() / (crate::predict::COVERAGE_K * u) } else { f64::INFINITY };
+            let en = p.sigma_m.is_finite().then(|| {
+                if u > 0.0 {
+                    d.abs() / (crate::predict::COVERAGE_K * u)
+                } else {
+                    f64::INFINITY
+                }
+            });
             ComparedPoint {
                 s_m: p.s_m,
                 predicted_m: p.deviation_m,
@@ -258,16 +290,15 @@ pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f6
             }
         })
         .collect();
-    let range = |v: &mut dyn Iterator<Item = f64>| {
-        let (lo, hi) = v.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
-        hi - lo
-    };
+    let determined = || points.iter().filter(|c| c.is_determined());
+    let largest = |v: &mut dyn Iterator<Item = f64>| v.fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
     LineComparison {
         line: line.clone(),
-        max_abs_difference_m: points.iter().map(|c| c.difference_m.abs()).fold(0.0, f64::max),
-        predicted_range_m: range(&mut points.iter().map(|c| c.predicted_m)),
-        measured_range_m: range(&mut points.iter().map(|c| c.measured_m)),
-        max_en: points.iter().map(|c| c.en).fold(0.0, f64::max),
+        determined: determined().count(),
+        max_abs_difference_m: largest(&mut determined().map(|c| c.difference_m.abs())),
+        predicted_range_m: range(determined().map(|c| c.predicted_m)),
+        measured_range_m: range(points.iter().map(|c| c.measured_m)).unwrap_or(0.0),
+        max_en: largest(&mut determined().filter_map(|c| c.en)),
         points,
     }
 }
@@ -355,7 +386,40 @@ mod tests {
             assert!((p.sigma_m - var.sqrt()).abs() < 1e-15, "{} vs {}", p.sigma_m, var.sqrt());
         }
         let c = compare(&line, &pts, &pts.iter().map(|p| (p.deviation_m + 1e-6, 0.0)).collect::<Vec<_>>());
-        assert!((c.max_abs_difference_m - 1e-6).abs() < 1e-15);
-        assert!((c.predicted_range_m - (20e-6 * 0.49 + 0.5 * 25e-12 * 0.7)).abs() < 1e-15);
+        assert!((c.max_abs_difference_m.unwrap() - 1e-6).abs() < 1e-15);
+        assert!((c.predicted_range_m.unwrap() - (20e-6 * 0.49 + 0.5 * 25e-12 * 0.7)).abs() < 1e-15);
+        assert_eq!(c.determined, pts.len());
+    }
+
+    /// A target whose prediction the data do not determine keeps its measurement but gives no
+    /// difference, normalised error or predicted range: its minimum-norm value is no prediction,
+    /// and its infinite uncertainty would pass any difference as agreement (En near 0).
+    #[test]
+    fn undetermined_targets_are_left_out_of_the_predicted_figures() {
+        let line = Line { name: "X".into(), start: Point3::origin(), end: Point3::new(0.3, 0.0, 0.0) };
+        let at = |s_m: f64, deviation_m: f64, sigma_m: f64| PositioningPoint {
+            s_m,
+            x: Point3::new(s_m, 0.0, 0.0),
+            deviation_m,
+            sigma_m,
+            interpolated: false,
+        };
+        let pts = [at(0.0, 0.0, 0.0), at(0.1, 2e-6, 1e-7), at(0.2, 5e-3, f64::INFINITY), at(0.3, -1e-6, 1e-7)];
+        let measured = [(0.0, 1e-8), (2.1e-6, 1e-8), (3e-6, 1e-8), (-1e-6, 1e-8)];
+        let c = compare(&line, &pts, &measured);
+        assert_eq!(c.determined, 3);
+        assert_eq!(c.points[2].en, None);
+        assert!(!c.points[2].is_determined());
+        assert!((c.predicted_range_m.unwrap() - 3e-6).abs() < 1e-15, "{:?}", c.predicted_range_m);
+        assert!((c.max_abs_difference_m.unwrap() - 1e-7).abs() < 1e-15, "{:?}", c.max_abs_difference_m);
+        assert!((c.measured_range_m - 4e-6).abs() < 1e-15);
+        assert!(c.max_en.unwrap() > 0.0 && c.max_en.unwrap().is_finite());
+
+        let none = [at(0.0, 1.0, f64::INFINITY), at(0.3, -1.0, f64::INFINITY)];
+        let c = compare(&line, &none, &measured[..2]);
+        assert_eq!((c.determined, c.predicted_range_m, c.max_abs_difference_m, c.max_en), (0, None, None, None));
+        // The start alone spans no range.
+        let c = compare(&line, &[at(0.0, 0.0, 0.0), at(0.3, -1.0, f64::INFINITY)], &measured[..2]);
+        assert_eq!((c.determined, c.predicted_range_m), (1, None));
     }
 }
