@@ -8,6 +8,54 @@ use std::path::{Path, PathBuf};
 use volcal_msgs::cdr;
 use volcal_msgs::RosMessage;
 
+/// Largest record (and chunk, uncompressed) the reader accepts beyond the file's own size:
+/// 1 GiB. The recorder's chunks are a few megabytes. The MCAP reader trusts a record's stated
+/// length: without a limit a damaged one overflowed its arithmetic (a panic) or had it reserve
+/// an exabyte (an abort) before any check.
+const RECORD_LIMIT: u64 = 1 << 30;
+
+/// The records of one MCAP file in order, chunks unpacked: `mcap`'s linear reader with each
+/// record's stated length bounded ([`RECORD_LIMIT`], or the file's size if larger) and each
+/// chunk's CRC checked before its records are parsed, so that damaged bytes are an error, not a
+/// crash. The end magic is not required (a killed recorder leaves none).
+struct Records<'a> {
+    buf: &'a [u8],
+    reader: mcap::sans_io::LinearReader,
+}
+
+impl<'a> Records<'a> {
+    fn new(buf: &'a [u8]) -> Records<'a> {
+        let limit = usize::try_from((buf.len() as u64).max(RECORD_LIMIT)).unwrap_or(usize::MAX);
+        let options = mcap::sans_io::LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(limit);
+        Records { buf, reader: mcap::sans_io::LinearReader::new_with_options(options) }
+    }
+}
+
+impl Iterator for Records<'_> {
+    type Item = mcap::McapResult<mcap::records::Record<'static>>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                    let n = need.min(self.buf.len());
+                    self.reader.insert(n).copy_from_slice(&self.buf[..n]);
+                    self.reader.notify_read(n);
+                    self.buf = &self.buf[n..];
+                }
+                Ok(mcap::sans_io::LinearReadEvent::Record { data, opcode }) => {
+                    return Some(mcap::parse_record(opcode, data).map(|r| r.into_owned()))
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    }
+}
+
 /// One message as stored.
 pub struct MessageRef<'a> {
     pub topic: &'a str,
@@ -123,45 +171,58 @@ impl Bag {
             truncated: None,
             metadata_count: None,
         };
-        let opts = mcap::read::Options::IgnoreEndMagic.into();
         for file in &self.files {
             let buf = std::fs::read(file).with_context(|| format!("cannot read {}", file.display()))?;
             if buf.len() < mcap::MAGIC.len() || &buf[..mcap::MAGIC.len()] != mcap::MAGIC {
                 bail!("{}: not an MCAP file", file.display());
             }
             let closed = buf.ends_with(mcap::MAGIC) && mcap::read::footer(&buf).is_ok();
-            let mut stream = mcap::read::RawMessageStream::new_with_options(&buf, opts)
-                .map_err(|e| anyhow!("{}: {e}", file.display()))?;
-            // Per channel id: topic, type, messages read (no string lookups per message).
+            // Schema names by id; per channel id: topic, type, messages read (no string lookups
+            // per message).
+            let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
             let mut channels: Vec<Option<(String, String, u64)>> = Vec::new();
-            while let Some(item) = stream.next() {
-                let m = match item {
-                    Ok(m) => m,
+            for item in Records::new(&buf) {
+                let record = match item {
+                    Ok(r) => r,
                     Err(e) if !closed => {
                         s.truncated = Some(format!("{} ends in an incomplete record ({e})", file.display()));
                         break;
                     }
                     Err(e) => bail!("{}: damaged after {} messages: {e}", file.display(), s.messages),
                 };
-                let id = m.header.channel_id as usize;
-                if channels.len() <= id {
-                    channels.resize(id + 1, None);
-                }
-                if channels[id].is_none() {
-                    let ch = stream
-                        .get_channel(id as u16)
-                        .ok_or_else(|| anyhow!("{}: message on unknown channel {id}", file.display()))?;
-                    let ty = ch.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-                    channels[id] = Some((ch.topic.clone(), ty, 0));
+                let (header, data) = match record {
+                    mcap::records::Record::Schema { header, .. } => {
+                        schemas.insert(header.id, header.name);
+                        continue;
+                    }
+                    mcap::records::Record::Channel(c) => {
+                        let id = c.id as usize;
+                        if channels.len() <= id {
+                            channels.resize(id + 1, None);
+                        }
+                        if channels[id].is_none() {
+                            let ty = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                            channels[id] = Some((c.topic, ty, 0));
+                        }
+                        continue;
+                    }
+                    mcap::records::Record::Message { header, data } => (header, data),
+                    // The messages end with the data section.
+                    mcap::records::Record::DataEnd(_) => break,
+                    _ => continue,
+                };
+                let id = header.channel_id as usize;
+                if channels.get(id).is_none_or(Option::is_none) {
+                    bail!("{}: message on unknown channel {id}", file.display());
                 }
                 let (topic, ty, count) = channels[id].as_mut().unwrap();
-                let log_ns = m.header.log_time as i64;
+                let log_ns = header.log_time as i64;
                 let msg = MessageRef {
                     topic,
                     type_name: ty,
                     log_ns,
-                    publish_ns: m.header.publish_time as i64,
-                    data: &m.data,
+                    publish_ns: header.publish_time as i64,
+                    data: &data,
                     index: s.messages,
                 };
                 f(&msg)?;
@@ -260,6 +321,51 @@ mod tests {
         assert!(Bag::open(&dir.join("nope")).is_err());
         assert!(BagWriter::create(&dir, Duration::from_secs(1)).is_err(), "an existing bag is never overwritten");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Damaged bytes give an error or a recovery note, never a panic or an abort: a record
+    /// length of 2^64 - 1 (which overflowed the MCAP reader's arithmetic), a chunk stating an
+    /// exabyte uncompressed (which it tried to allocate), and a flipped byte inside a chunk's
+    /// compressed records (caught by the chunk's CRC).
+    #[test]
+    fn damaged_bytes_are_an_error_not_a_crash() {
+        let dir = scratch("damaged");
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("bad.mcap");
+        let mut bytes = mcap::MAGIC.to_vec();
+        bytes.extend([0xff; 9]);
+        std::fs::write(&file, &bytes).unwrap();
+        let s = Bag::open(&file).unwrap().count().unwrap();
+        assert_eq!(s.messages, 0);
+        assert!(s.truncated.as_deref().is_some_and(|t| t.contains("bad.mcap ends in an incomplete record")), "{s:?}");
+
+        let bag = scratch("damaged-chunk");
+        write_bag(&bag, 1000, 250).finish().unwrap();
+        let mcap = std::fs::read_dir(&bag)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+            .unwrap();
+        let good = std::fs::read(&mcap).unwrap();
+        // The first chunk record.
+        let mut at = mcap::MAGIC.len();
+        while good[at] != 0x06 {
+            at += 9 + u64::from_le_bytes(good[at + 1..at + 9].try_into().unwrap()) as usize;
+        }
+        let mut huge = good.clone();
+        huge[at + 9 + 16..at + 9 + 24].copy_from_slice(&(1u64 << 60).to_le_bytes());
+        std::fs::write(&mcap, &huge).unwrap();
+        let e = Bag::open(&bag).unwrap().count().unwrap_err().to_string();
+        assert!(e.contains("damaged after 0 messages"), "{e}");
+
+        let mut flipped = good.clone();
+        let len = u64::from_le_bytes(good[at + 1..at + 9].try_into().unwrap()) as usize;
+        flipped[at + 9 + len - 20] ^= 0x02;
+        std::fs::write(&mcap, &flipped).unwrap();
+        let e = Bag::open(&bag).unwrap().count().unwrap_err().to_string();
+        assert!(e.contains("damaged after 0 messages"), "a flipped byte inside a closed file's first chunk: {e}");
+        let _ = std::fs::remove_dir_all(&dir);
+        let _ = std::fs::remove_dir_all(&bag);
     }
 
     #[test]

@@ -171,6 +171,17 @@ fn bad_input_is_reported_with_file_line_and_field() {
         );
     }
 
+    // Finite but no machine's: a coordinate of 1e300 m (squared and summed it overflowed into a
+    // diagnosis of NaN).
+    let mut bad = lines.clone();
+    let mut f: Vec<&str> = lines[header_at + 3].split(',').collect();
+    f[6] = "1e300";
+    let row = f.join(",");
+    bad[header_at + 3] = &row;
+    let (code, t) = solve_text(&d, "huge.csv", &(bad.join("\n") + "\n"));
+    assert_ne!(code, 0);
+    assert!(t.contains(&format!("line {}", header_at + 4)) && t.contains("y_m") && t.contains("beyond"), "{t}");
+
     // An empty file, a header-only file.
     let (code, t) = solve_text(&d, "empty.csv", "");
     assert_ne!(code, 0);

@@ -27,7 +27,7 @@ use volcal::campaign::{Observations, ScaleExpansion};
 use volcal::estimator::{Solution, SolveError};
 use volcal::flexibility::{solve_auto, Auto, AxisKnots};
 use volcal::smoothing::Smoothing;
-use volcal::{ErrorFunction, Gauge, ModelLayout, NoiseModel, Representation, SolveOptions, Topology, Travel};
+use volcal::{Axis, ErrorFunction, Gauge, ModelLayout, NoiseModel, Representation, SolveOptions, Topology, Travel};
 use volcal_sim::{Deflector, EnvironmentSim, Interferometer, Tracer, TruthSpec};
 
 /// Per-axis travel as written in YAML.
@@ -256,6 +256,7 @@ impl Machine {
             RepresentationSpec::Given(r) => (None, r),
         };
         base.validate().map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
+        check_period(&base, &travel).map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
         let mut reprs = [base; 18];
         let mut overrides = [None; 18];
         for (name, r) in &file.representations {
@@ -265,6 +266,7 @@ impl Machine {
                 )
             })?;
             r.validate().map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
+            check_period(r, &travel).map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
             reprs[f.index()] = *r;
             overrides[f.index()] = Some(*r);
         }
@@ -287,12 +289,21 @@ impl Machine {
         if noise.interferometer_m == 0.0 && noise.repeatability_m == 0.0 {
             bail!("field noise: interferometer_m and repeatability_m cannot both be zero (they weight the readings)");
         }
+        check_simulation(&file.simulation)?;
+        if let Some(r) = &file.simulation.truth_representation {
+            r.validate().map_err(|e| anyhow::anyhow!("field simulation.truth_representation: {e}"))?;
+            check_period(r, &travel).map_err(|e| anyhow::anyhow!("field simulation.truth_representation: {e}"))?;
+        }
         let expansion = match &file.expansion {
             None => ScaleExpansion::default(),
             Some(e) => {
                 ScaleExpansion { alpha_per_k: [e.x, e.y, e.z], fixed_point_m: e.fixed_point_m.unwrap_or([0.0; 3]) }
             }
         };
+        if let Some(v) = expansion.alpha_per_k.iter().flatten().chain(&expansion.fixed_point_m).find(|v| !v.is_finite())
+        {
+            bail!("field expansion: every coefficient and the fixed point must be finite numbers, got {v}");
+        }
         if let Some(p) = &file.simulation.truth_preset {
             check_truth_preset(p, &topology, &travel)?;
         }
@@ -386,6 +397,58 @@ fn check_truth_preset(name: &str, topology: &Topology, travel: &Travel) -> Resul
 /// The paper's CMM (Han et al. 2021), shipped as an example machine file.
 pub const PAPER_MACHINE: &str = include_str!("../../launch_configs/machines/paper_cmm.yaml");
 
+/// A harmonic representation's period against the travel: at more than ten times the longest
+/// axis its sines and cosines are nearly straight lines over the travel, which the basis cannot
+/// tell apart from each other (a period of 1e300 m made its Gram matrix singular, a panic).
+fn check_period(r: &Representation, travel: &Travel) -> Result<()> {
+    let longest = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
+    if let Representation::Harmonic { period_m: Some(p), .. } = *r {
+        if p > 10.0 * longest {
+            bail!("a harmonic period of {p:e} m is more than ten times the longest travel ({longest} m): over the travel its harmonics are nearly straight lines");
+        }
+    }
+    Ok(())
+}
+
+/// The virtual machine's figures of `volcal simulate`: every standard deviation finite and not
+/// negative, the environment's period positive. A random draw with an infinite or NaN standard
+/// deviation has no meaning (it panicked in the simulator), and a NaN one was taken as zero.
+fn check_simulation(s: &SimulationSpec) -> Result<()> {
+    let e = &s.environment;
+    for (name, v) in [
+        ("repeatability_m", s.repeatability_m),
+        ("centring_m", s.centring_m),
+        ("interferometer.noise_m", s.interferometer.noise_m),
+        ("interferometer.resolution_m", s.interferometer.resolution_m),
+        ("deflector.pointing_noise_rad", s.deflector.pointing_noise_rad),
+        ("tracer.noise_m", s.tracer.noise_m),
+        ("tracer.noise_ppm", s.tracer.noise_ppm),
+        ("tracer.resolution_m", s.tracer.resolution_m),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("field simulation.{name}: must be a non-negative number, got {v}");
+        }
+    }
+    for (name, v) in [
+        ("environment.air_temp_rate_k_per_h", e.air_temp_rate_k_per_h),
+        ("environment.air_temp_cycle_k", e.air_temp_cycle_k),
+        ("environment.machine_temp_c", e.machine_temp_c),
+        ("tracer.dead_path_m", s.tracer.dead_path_m),
+        ("deflector.pivot_offset_m", s.deflector.pivot_offset_m),
+    ] {
+        if !v.is_finite() {
+            bail!("field simulation.{name}: must be a finite number, got {v}");
+        }
+    }
+    if !(e.air_temp_cycle_period_s.is_finite() && e.air_temp_cycle_period_s > 0.0) {
+        bail!(
+            "field simulation.environment.air_temp_cycle_period_s: must be a positive number of seconds, got {}",
+            e.air_temp_cycle_period_s
+        );
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -432,5 +495,35 @@ mod tests {
         assert!(format!("{e:#}").contains("EQX"), "{e:#}");
         let e = Machine::parse("topology: FXYZ\ntravel: {x: [0, 1], y: [0, 1]\n").unwrap_err();
         assert!(format!("{e:#}").contains("line"), "{e:#}");
+    }
+
+    /// Values a user could type that the solver or the simulator cannot use are refused with
+    /// the field named (found by fuzzing: each panicked, aborted or wrote NaN before).
+    #[test]
+    fn values_beyond_use_are_refused_with_the_field() {
+        let head = "topology: FXYZ\ntravel: {x: [0, 1], y: [0, 0.8], z: [-0.6, 0]}\n";
+        for (extra, field) in [
+            ("representation: {kind: bspline, intervals: 100000}", "representation"),
+            ("representation: {kind: table, nodes: 10000}", "representation"),
+            ("representations: {EXX: {kind: harmonic, harmonics: 10000}}", "representations.EXX"),
+            ("representation: {kind: harmonic, harmonics: 3, period_m: 1e300}", "representation"),
+            (
+                "simulation: {truth_representation: {kind: bspline, intervals: 100000}}",
+                "simulation.truth_representation",
+            ),
+            ("simulation: {repeatability_m: .inf}", "simulation.repeatability_m"),
+            ("simulation: {centring_m: .nan}", "simulation.centring_m"),
+            (
+                "simulation: {environment: {air_temp_cycle_period_s: 0}}",
+                "simulation.environment.air_temp_cycle_period_s",
+            ),
+            ("expansion: {x: .nan, y: 0, z: 0}", "expansion"),
+        ] {
+            let e = Machine::parse(&format!("{head}{extra}\n")).unwrap_err();
+            assert!(format!("{e:#}").contains(&format!("field {field}")), "{extra}: {e:#}");
+        }
+        assert!(
+            Machine::parse(&format!("{head}representation: {{kind: harmonic, harmonics: 3, period_m: 2}}\n")).is_ok()
+        );
     }
 }

@@ -9,7 +9,7 @@
 
 use anyhow::{bail, Result};
 use std::collections::BTreeSet;
-use volcal::campaign::{Campaign, ObsKind};
+use volcal::campaign::{Campaign, CampaignMeta, Compensation, ObsKind};
 
 /// Merges campaigns `(name, campaign)` in order. Returns the merged campaign and notes on what
 /// was renumbered.
@@ -26,9 +26,9 @@ pub fn merge(campaigns: Vec<(String, Campaign)>) -> Result<(Campaign, Vec<String
     for (name, c) in it {
         if c.meta != out.meta {
             bail!(
-                "{name}: its metadata ({:?}) differs from {first_name}'s ({:?}); convert the readings to the same wavelength and compensation first",
-                c.meta,
-                out.meta
+                "{name}: its metadata ({}) differs from {first_name}'s ({}); convert the readings to the same wavelength and compensation first",
+                meta_text(&c.meta),
+                meta_text(&out.meta)
             );
         }
         // New id = old id - smallest id of the file + first free id, per kind, on collision.
@@ -36,8 +36,17 @@ pub fn merge(campaigns: Vec<(String, Campaign)>) -> Result<(Campaign, Vec<String
         for kind in [ObsKind::Beam, ObsKind::Range] {
             let mine: BTreeSet<u32> = c.readings.iter().filter(|r| r.kind == kind).map(|r| r.station).collect();
             if mine.iter().any(|s| used[slot(kind)].contains(s)) {
-                let free = used[slot(kind)].iter().next_back().map_or(0, |m| m + 1);
                 let low = *mine.iter().next().unwrap();
+                let high = *mine.iter().next_back().unwrap();
+                // The renumbered ids must fit: ids near 2^32 would wrap onto stations in use.
+                let free = used[slot(kind)].iter().next_back().map_or(Some(0), |m| m.checked_add(1));
+                let Some(free) = free.filter(|f| (high - low).checked_add(*f).is_some()) else {
+                    bail!(
+                        "{name}: its {} stations {low}..={high} cannot be renumbered after those in use (up to {}): the ids would pass 4294967295; number the stations from 0",
+                        kind.name(),
+                        used[slot(kind)].iter().next_back().unwrap()
+                    );
+                };
                 shift[slot(kind)] = (low, free);
                 notes.push(format!(
                     "{name}: {} stations {}..={} renumbered to start at {free}",
@@ -62,6 +71,15 @@ pub fn merge(campaigns: Vec<(String, Campaign)>) -> Result<(Campaign, Vec<String
         }
     }
     Ok((out, notes))
+}
+
+/// A campaign's metadata as a sentence's part: wavelength, compensation, air equation.
+fn meta_text(m: &CampaignMeta) -> String {
+    let compensation = match m.compensation {
+        Compensation::Compensated => "compensated lengths".to_string(),
+        Compensation::Uncompensated { assumed_index } => format!("uncompensated, assumed index {assumed_index}"),
+    };
+    format!("vacuum wavelength {} nm, {compensation}, air equation {:?}", m.wavelength_vac_m * 1e9, m.air_equation)
 }
 
 #[cfg(test)]
@@ -108,6 +126,20 @@ mod tests {
         assert!(notes.iter().any(|n| n.contains("c: beam stations 1..=1 renumbered to start at 2")), "{notes:?}");
         let mut d = Campaign::default();
         d.meta.wavelength_vac_m = 633e-9;
-        assert!(merge(vec![("a".into(), Campaign::default()), ("d".into(), d)]).is_err());
+        let e = merge(vec![("a".into(), Campaign::default()), ("d".into(), d)]).unwrap_err().to_string();
+        assert!(e.contains("vacuum wavelength 633 nm") && !e.contains("CampaignMeta"), "{e}");
+    }
+
+    /// Station ids near 2^32 cannot be renumbered past those in use: an error, not ids that
+    /// wrap onto stations already in the file (they merged two campaigns' lines into one).
+    #[test]
+    fn ids_that_would_wrap_are_refused() {
+        let a = Campaign {
+            readings: vec![reading(ObsKind::Beam, 0, 0.0), reading(ObsKind::Beam, u32::MAX, 1.0)],
+            ..Default::default()
+        };
+        let b = Campaign { readings: vec![reading(ObsKind::Beam, 0, 0.0)], ..Default::default() };
+        let e = merge(vec![("a".into(), a), ("b".into(), b)]).unwrap_err().to_string();
+        assert!(e.contains("b: its beam stations 0..=0 cannot be renumbered"), "{e}");
     }
 }

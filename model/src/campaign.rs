@@ -410,6 +410,9 @@ fn max_length(travel: &Travel) -> f64 {
     Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max)
 }
 
+/// Largest length or coordinate a reading may carry, metres.
+const MAX_LENGTH_M: f64 = 1e4;
+
 fn check_finite(c: &Campaign) -> Result<(), InputIssue> {
     for r in &c.readings {
         let bad = |field: &'static str| InputIssue {
@@ -430,6 +433,15 @@ fn check_finite(c: &Campaign) -> Result<(), InputIssue> {
         for (name, v) in fields {
             if !v.is_finite() {
                 return Err(bad(name));
+            }
+            // A length or a coordinate of more than 10 km is no reading of a machine: squared and
+            // summed it overflows (a diagnosis printed NaN for a reading of 1e300 m).
+            if name != "t_s" && v.abs() > MAX_LENGTH_M {
+                return Err(InputIssue {
+                    source_line: r.source_line,
+                    field: Some(name),
+                    message: format!("value {v:e} m is beyond {MAX_LENGTH_M:e} m: no reading of a machine's travel"),
+                });
             }
         }
         if let Some(t) = r.machine_temp_c {

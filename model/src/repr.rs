@@ -42,6 +42,12 @@ impl Default for Representation {
     }
 }
 
+/// Most coefficients of one function's representation. Eighteen functions of a thousand make
+/// a normal matrix of 18 000 squared (2.6 GB); far more than any campaign determines, and a
+/// representation much larger (a B-spline of 100 000 intervals asked for an 80 GB Gram matrix)
+/// would exhaust memory before the first reading is fitted.
+pub const MAX_COEFFICIENTS: usize = 1_000;
+
 impl Representation {
     /// Checks the parameters (at least a linear function must be representable).
     pub fn validate(&self) -> Result<(), String> {
@@ -56,7 +62,15 @@ impl Representation {
             Representation::Harmonic { period_m: Some(p), .. } if !(p > 0.0 && p.is_finite()) => {
                 Err(format!("harmonic period must be positive, got {p}"))
             }
-            Representation::Table { nodes } if nodes > 10_000 => Err("table too large".into()),
+            Representation::Table { nodes } if nodes > MAX_COEFFICIENTS => {
+                Err(format!("a table of {nodes} nodes is too large (max {MAX_COEFFICIENTS})"))
+            }
+            Representation::BSpline { intervals } if intervals + 3 > MAX_COEFFICIENTS => {
+                Err(format!("a B-spline of {intervals} intervals is too large (max {})", MAX_COEFFICIENTS - 3))
+            }
+            Representation::Harmonic { harmonics, .. } if 2 * harmonics + 2 > MAX_COEFFICIENTS => {
+                Err(format!("{harmonics} harmonics are too many (max {})", (MAX_COEFFICIENTS - 2) / 2))
+            }
             Representation::Polynomial { degree } if degree > 40 => {
                 Err(format!("polynomial degree {degree} is too high (max 40)"))
             }

@@ -46,6 +46,10 @@ impl Acquisition {
     }
 }
 
+/// Most points per beam, stations, runs of a reference line or stops of a tracer's path a plan
+/// may ask for: a million, far beyond any campaign, and far below what would exhaust memory.
+pub const MAX_COUNT: usize = 1_000_000;
+
 /// A campaign plan. All fields have defaults; an empty YAML file is the patent's example.
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -213,14 +217,47 @@ impl Plan {
         if self.probe_offsets.is_empty() {
             return Err(PlanError("at least one probe offset is needed (use [0, 0, 0] for none)".into()));
         }
-        if self.acquisition.speed() <= 0.0 || self.speeds_mps.iter().any(|v| !(*v > 0.0)) {
-            return Err(PlanError("acquisition speeds must be positive".into()));
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.acquisition.speed()) || !self.speeds_mps.iter().all(|&v| positive(v)) {
+            return Err(PlanError("acquisition speeds must be positive numbers".into()));
         }
-        if self.path_step_m.iter().any(|s| !(*s > 0.0)) {
-            return Err(PlanError("path_step_m must be positive".into()));
+        if !self.path_step_m.iter().all(|&s| positive(s)) {
+            return Err(PlanError("path_step_m must be positive numbers".into()));
         }
         if let Some(l) = self.reference_lines.iter().find(|l| l.runs == Some(0)) {
             return Err(PlanError(format!("reference line along {:?}: runs must be at least 1", l.axis.axis())));
+        }
+        // Every other number finite: a NaN or an infinity would reach the campaign file.
+        let dwell = match self.acquisition {
+            Acquisition::Static { dwell_s, .. } => dwell_s,
+            Acquisition::OnTheFly { .. } => 0.0,
+        };
+        let scalars = [
+            ("dwell_s", dwell),
+            ("station_setup_s", self.station_setup_s),
+            ("min_elevation_deg", self.min_elevation_deg),
+            ("min_beam_fraction", self.min_beam_fraction),
+        ];
+        if let Some((name, v)) = scalars.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(PlanError(format!("{name} must be a finite number, got {v}")));
+        }
+        let points = self
+            .probe_offsets
+            .iter()
+            .chain(&self.stations)
+            .chain(self.reference_lines.iter().flat_map(|l| [&l.through, &l.probe_offset]));
+        if points.flatten().any(|v| !v.is_finite()) {
+            return Err(PlanError("probe offsets, stations and reference lines must be finite numbers".into()));
+        }
+        // Counts beyond what a campaign could hold: each would ask for more memory than a
+        // machine has before a reading is simulated.
+        let counts = [
+            ("points_per_beam", self.points_per_beam),
+            ("n_stations", self.n_stations.unwrap_or(0)),
+            ("reference line runs", self.reference_lines.iter().filter_map(|l| l.runs).max().unwrap_or(0)),
+        ];
+        if let Some((name, n)) = counts.iter().find(|(_, n)| *n > MAX_COUNT) {
+            return Err(PlanError(format!("{name} is {n}, more than the {MAX_COUNT} a campaign can hold")));
         }
         Ok(())
     }
@@ -274,6 +311,16 @@ impl Plan {
     /// Expands a fixed-beam plan into beam tasks for a machine travel.
     pub fn beam_tasks(&self, travel: &Travel) -> Result<Vec<BeamTask>, PlanError> {
         self.validate()?;
+        let stations = self.n_stations.map_or(self.stations.len(), |n| n.max(self.stations.len())).max(1);
+        let readings = stations as f64 * self.directions_per_station as f64 * self.points_per_beam as f64;
+        if readings > MAX_COUNT as f64 * 10.0 {
+            return Err(PlanError(format!(
+                "{stations} station(s) x {} directions x {} points per beam is {readings:.3e} readings, more than the {} a campaign can hold",
+                self.directions_per_station,
+                self.points_per_beam,
+                MAX_COUNT * 10
+            )));
+        }
         let extent = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
         let min_len = self.min_beam_fraction * extent;
         let mut tasks = Vec::new();
@@ -422,9 +469,18 @@ impl Plan {
                 edges.push((corner(i, j, 0), corner(i, j, 1), 2));
             }
         }
+        let steps =
+            |a: &Point3<f64>, b: &Point3<f64>, ax: usize| ((b - a).norm() / self.path_step_m[ax]).round().max(1.0);
+        let total: f64 = edges.iter().map(|(a, b, ax)| steps(a, b, *ax) + 1.0).sum();
+        if total > MAX_COUNT as f64 {
+            return Err(PlanError(format!(
+                "path_step_m {:?} gives {total:.3e} stops along the edges, more than the {MAX_COUNT} a campaign can hold",
+                self.path_step_m
+            )));
+        }
         let mut points = Vec::new();
         for (a, b, ax) in edges {
-            let n = ((b - a).norm() / self.path_step_m[ax]).round().max(1.0) as usize;
+            let n = steps(&a, &b, ax) as usize;
             for s in 0..=n {
                 points.push(a + (b - a) * (s as f64 / n as f64));
             }
@@ -512,6 +568,31 @@ mod tests {
             assert!((last[a.index()] - (hi - 0.01 * (hi - lo))).abs() < 1e-12, "{last}");
             assert_eq!(t.abscissae.len(), plan.points_per_beam);
         }
+    }
+
+    /// Numbers a plan file could hold that no campaign can: NaN or infinite speeds and times,
+    /// and counts that would exhaust memory before a reading is simulated (found by fuzzing:
+    /// they wrote NaN into the campaign, panicked or aborted).
+    #[test]
+    fn plans_beyond_a_campaign_are_refused() {
+        let travel = Travel::new([0.0, 1.0], [0.0, 0.8], [-0.6, 0.0]);
+        let bad = [
+            Plan { acquisition: Acquisition::Static { speed_mps: f64::NAN, dwell_s: 1.0 }, ..Plan::short() },
+            Plan { acquisition: Acquisition::OnTheFly { speed_mps: f64::INFINITY }, ..Plan::short() },
+            Plan { acquisition: Acquisition::Static { speed_mps: 0.05, dwell_s: f64::NAN }, ..Plan::short() },
+            Plan { min_elevation_deg: f64::NAN, ..Plan::short() },
+            Plan { probe_offsets: vec![[f64::NAN, 0.0, 0.0]], ..Plan::short() },
+            Plan { station_setup_s: f64::INFINITY, ..Plan::short() },
+            Plan { points_per_beam: usize::MAX, ..Plan::short() },
+            Plan { n_stations: Some(1_000_000), ..Plan::short() },
+        ];
+        for p in bad {
+            assert!(p.beam_tasks(&travel).is_err(), "{p:?}");
+        }
+        let tiny = Plan { path_step_m: [1e-7; 3], ..Plan::paper_tracer() };
+        let e = tiny.path_tasks(&travel).unwrap_err();
+        assert!(e.0.contains("stops along the edges"), "{e:?}");
+        assert!(Plan::short().beam_tasks(&travel).is_ok() && Plan::paper_tracer().path_tasks(&travel).is_ok());
     }
 
     #[test]

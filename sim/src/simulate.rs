@@ -285,6 +285,17 @@ pub fn simulate(cfg: &SimConfig, injections: &[&dyn Injection], seed: u64) -> Re
             }
         }
     }
+    // A truth or a time beyond what floating point holds (errors of 1e300 m, a dwell of 1e308
+    // s) overflows into infinities and NaN: refused rather than written to a campaign file.
+    if let Some((k, r)) = readings.iter().enumerate().find(|(_, r)| {
+        ![r.t_s, r.l_m, r.x.x, r.x.y, r.x.z].iter().all(|v| v.is_finite())
+            || r.air.is_some_and(|a| !(a.temp_c.is_finite() && a.pressure_pa.is_finite() && a.humidity_pct.is_finite()))
+    }) {
+        return Err(PlanError(format!(
+            "reading {k} came out non-finite (t {} s, length {} m, at {:?}): the machine's truth magnitudes or the plan's times are beyond what the simulation can represent",
+            r.t_s, r.l_m, r.x
+        )));
+    }
     let injected = injections
         .iter()
         .map(|i| InjectedTruth { id: i.id().to_string(), description: i.describe(), parameters: i.parameters() })

@@ -74,7 +74,16 @@ fn parse_row(f: &[&str], line: usize) -> Result<Approach, String> {
         "-" => Direction::Down,
         s => return Err(format!("column direction: {s:?} (expected + or -)")),
     };
-    Ok(Approach { target_mm: num(0)?, run, direction, deviation_um: num(3)?, line })
+    // Beyond these no positioning test lies (10 km of travel, a deviation of a metre); squared
+    // and summed, larger values overflowed into infinite and null figures.
+    let (target_mm, deviation_um) = (num(0)?, num(3)?);
+    if target_mm.abs() > 1e7 {
+        return Err(format!("column {}: {target_mm:e} mm is beyond 10 km", HEADER[0]));
+    }
+    if deviation_um.abs() > 1e6 {
+        return Err(format!("column {}: {deviation_um:e} um is beyond a metre", HEADER[3]));
+    }
+    Ok(Approach { target_mm, run, direction, deviation_um, line })
 }
 
 #[cfg(test)]
@@ -93,6 +102,9 @@ mod tests {
         assert!(err("target_mm,run,direction,deviation_um\n0,1,up,1\n").contains("line 2: column direction"));
         assert!(err("target_mm,run,direction,deviation_um\n0,1,+\n").contains("line 2: 3 fields"));
         assert!(err("target_mm,run,direction,deviation_um\n0,1,+,inf\n").contains("not a finite number"));
+        // Finite but beyond any positioning test: squared and summed they overflowed.
+        assert!(err("target_mm,run,direction,deviation_um\n0,1,+,1e200\n").contains("line 2: column deviation_um"));
+        assert!(err("target_mm,run,direction,deviation_um\n1e300,1,+,1\n").contains("line 2: column target_mm"));
         assert!(err("").contains("no header"));
     }
 }
