@@ -255,8 +255,7 @@ impl Machine {
             RepresentationSpec::Auto(a) => (Some(a), Representation::BSpline { intervals: a.max_intervals }),
             RepresentationSpec::Given(r) => (None, r),
         };
-        base.validate().map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
-        check_period(&base, &travel).map_err(|e| anyhow::anyhow!("field representation: {e}"))?;
+        check_representation(&base, &travel, "representation")?;
         let mut reprs = [base; 18];
         let mut overrides = [None; 18];
         for (name, r) in &file.representations {
@@ -265,8 +264,7 @@ impl Machine {
                     "field representations: unknown error function {name:?} (expected ISO names such as EXX, EYZ, ECY)"
                 )
             })?;
-            r.validate().map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
-            check_period(r, &travel).map_err(|e| anyhow::anyhow!("field representations.{name}: {e}"))?;
+            check_representation(r, &travel, &format!("representations.{name}"))?;
             reprs[f.index()] = *r;
             overrides[f.index()] = Some(*r);
         }
@@ -291,8 +289,7 @@ impl Machine {
         }
         check_simulation(&file.simulation)?;
         if let Some(r) = &file.simulation.truth_representation {
-            r.validate().map_err(|e| anyhow::anyhow!("field simulation.truth_representation: {e}"))?;
-            check_period(r, &travel).map_err(|e| anyhow::anyhow!("field simulation.truth_representation: {e}"))?;
+            check_representation(r, &travel, "simulation.truth_representation")?;
         }
         let expansion = match &file.expansion {
             None => ScaleExpansion::default(),
@@ -397,14 +394,16 @@ fn check_truth_preset(name: &str, topology: &Topology, travel: &Travel) -> Resul
 /// The paper's CMM (Han et al. 2021), shipped as an example machine file.
 pub const PAPER_MACHINE: &str = include_str!("../../launch_configs/machines/paper_cmm.yaml");
 
-/// A harmonic representation's period against the travel: at more than ten times the longest
-/// axis its sines and cosines are nearly straight lines over the travel, which the basis cannot
-/// tell apart from each other (a period of 1e300 m made its Gram matrix singular, a panic).
-fn check_period(r: &Representation, travel: &Travel) -> Result<()> {
+/// Checks the representation in `field` ([`Representation::validate`]) and, against the
+/// travel, a harmonic period: at more than ten times the longest axis its sines and cosines are
+/// nearly straight lines over the travel, which the basis cannot tell apart from each other (a
+/// period of 1e300 m made its Gram matrix singular, a panic).
+fn check_representation(r: &Representation, travel: &Travel, field: &str) -> Result<()> {
+    r.validate().map_err(|e| anyhow::anyhow!("field {field}: {e}"))?;
     let longest = Axis::ALL.iter().map(|&a| travel.length(a)).fold(0.0, f64::max);
     if let Representation::Harmonic { period_m: Some(p), .. } = *r {
         if p > 10.0 * longest {
-            bail!("a harmonic period of {p:e} m is more than ten times the longest travel ({longest} m): over the travel its harmonics are nearly straight lines");
+            bail!("field {field}: a harmonic period of {p:e} m is more than ten times the longest travel ({longest} m): over the travel its harmonics are nearly straight lines");
         }
     }
     Ok(())

@@ -291,14 +291,13 @@ pub fn compare(line: &Line, predicted: &[PositioningPoint], measured: &[(f64, f6
         })
         .collect();
     let determined = || points.iter().filter(|c| c.is_determined());
-    let largest = |v: &mut dyn Iterator<Item = f64>| v.fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))));
     LineComparison {
         line: line.clone(),
         determined: determined().count(),
-        max_abs_difference_m: largest(&mut determined().map(|c| c.difference_m.abs())),
+        max_abs_difference_m: determined().map(|c| c.difference_m.abs()).reduce(f64::max),
         predicted_range_m: range(determined().map(|c| c.predicted_m)),
         measured_range_m: range(points.iter().map(|c| c.measured_m)).unwrap_or(0.0),
-        max_en: largest(&mut determined().filter_map(|c| c.en)),
+        max_en: determined().filter_map(|c| c.en).reduce(f64::max),
         points,
     }
 }
