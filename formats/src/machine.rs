@@ -217,6 +217,13 @@ pub struct Machine {
 }
 
 /// The built-in demo machine: a 1.0 x 0.8 x 0.6 m moving-bridge CMM (FXYZ as in the patent).
+/// The range of an instrument's stated noise, metres (a picometre to a millimetre): the fit's
+/// weights are its inverse square, and beyond this range they leave the floating-point range
+/// of the normal equations or describe no laser instrument.
+pub const NOISE_M: (f64, f64) = (1e-12, 1e-3);
+/// The largest length-proportional tracer noise, ppm.
+pub const MAX_NOISE_PPM: f64 = 1e3;
+
 pub const DEMO_MACHINE: &str = include_str!("../../launch_configs/machines/demo_cmm.yaml");
 
 impl Machine {
@@ -283,6 +290,24 @@ impl Machine {
             if !(v.is_finite() && v >= 0.0) {
                 bail!("field noise.{name}: must be a non-negative number, got {v}");
             }
+        }
+        // The weights of the fit are 1 / noise^2: a noise of 1e-300 m made them overflow and
+        // the solve end, 40 s later, in a singular-matrix error that named the readings.
+        for (name, v) in [
+            ("interferometer_m", noise.interferometer_m),
+            ("repeatability_m", noise.repeatability_m),
+            ("tracer_m", noise.tracer_m),
+        ] {
+            if v != 0.0 && !(NOISE_M.0..=NOISE_M.1).contains(&v) {
+                bail!(
+                    "field noise.{name}: {v:e} m is no instrument's noise (expected {:e} to {:e} m, or 0)",
+                    NOISE_M.0,
+                    NOISE_M.1
+                );
+            }
+        }
+        if noise.tracer_ppm > MAX_NOISE_PPM {
+            bail!("field noise.tracer_ppm: {} ppm is no instrument's noise (expected at most {MAX_NOISE_PPM})", noise.tracer_ppm);
         }
         if noise.interferometer_m == 0.0 && noise.repeatability_m == 0.0 {
             bail!("field noise: interferometer_m and repeatability_m cannot both be zero (they weight the readings)");
@@ -517,6 +542,10 @@ mod tests {
                 "simulation.environment.air_temp_cycle_period_s",
             ),
             ("expansion: {x: .nan, y: 0, z: 0}", "expansion"),
+            ("noise: {interferometer_m: 1.0e-300, repeatability_m: 2.0e-7}", "noise.interferometer_m"),
+            ("noise: {interferometer_m: 5.0e-8, repeatability_m: 1.0e300}", "noise.repeatability_m"),
+            ("noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_m: 0.5}", "noise.tracer_m"),
+            ("noise: {interferometer_m: 5.0e-8, repeatability_m: 2.0e-7, tracer_ppm: 1.0e9}", "noise.tracer_ppm"),
         ] {
             let e = Machine::parse(&format!("{head}{extra}\n")).unwrap_err();
             assert!(format!("{e:#}").contains(&format!("field {field}")), "{extra}: {e:#}");

@@ -269,6 +269,7 @@ impl RepresentationChoice {
                         KnotBound::Limit => "limit".into(),
                         KnotBound::Positions => "positions".into(),
                         KnotBound::Data => "data".into(),
+                        KnotBound::FewPositions => "few_positions".into(),
                     },
                     table: k.table.map(|t| TableEntry {
                         intervals: t.intervals,

@@ -78,6 +78,10 @@ pub enum KnotBound {
     Positions,
     /// The readings do not ask for finer knots (the refinement test).
     Data,
+    /// The readings lie at no more positions along the axis than a parabola passes through
+    /// ([`smoothable`]): they say nothing of the functions' roughness, so the functions are not
+    /// smoothed, one knot interval, and away from the positions the data leave them open.
+    FewPositions,
 }
 
 /// One refinement test of an axis: would doubling its knots explain the readings better than
@@ -161,6 +165,13 @@ impl AxisKnots {
                 "neither the readings' geometry nor the roughness prior determines finer knots".to_string()
             }
             KnotBound::Data => "finer knots would not explain the readings better".to_string(),
+            KnotBound::FewPositions => format!(
+                "not smoothed: the readings lie at {} position(s) along the axis, through which a parabola \
+                 passes whatever the errors, so they say nothing of the functions' roughness; away from those \
+                 positions the functions are not determined: measure at more positions along {}",
+                self.positions,
+                self.axis.letter()
+            ),
         };
         let tests: Vec<String> = self
             .tests
@@ -256,11 +267,25 @@ fn auto_functions(axis: Axis, overrides: &[Option<Representation>; 18]) -> Vec<E
     (0..6).map(|m| ErrorFunction::from_index(axis.index() * 6 + m)).filter(|f| overrides[f.index()].is_none()).collect()
 }
 
-/// The smoothing of the auto layout: every function without an override, by REML.
-fn smoothing_for(overrides: &[Option<Representation>; 18]) -> Smoothing {
+/// Whether readings at `positions` distinct positions along an axis can tell how rough its
+/// functions are: more positions than the roughness penalty's null space has dimensions (the
+/// quadratics, [`crate::smoothing::PENALTY_ORDER`]). Through three values or fewer a parabola
+/// passes whatever the errors, so the readings leave the penalised part wholly to the prior:
+/// REML then takes the smoothing to its upper bound, the penalised normal matrix holds the
+/// readings' one value per position beside a penalty some 1e13 times larger, and the solve
+/// failed as singular (seen: a campaign whose readings hold Y at one position). Such an axis's
+/// functions are not smoothed: one knot interval, determined at the positions and, away from
+/// them, reported as not determined.
+pub fn smoothable(positions: usize) -> bool {
+    positions > crate::smoothing::PENALTY_ORDER
+}
+
+/// The smoothing of the auto layout: by REML, every function without an override whose axis
+/// has readings at enough positions to tell its roughness (`positions`, per axis; [`smoothable`]).
+fn smoothing_for(overrides: &[Option<Representation>; 18], positions: [usize; 3]) -> Smoothing {
     let mut s = Smoothing::reml();
     for (i, o) in overrides.iter().enumerate() {
-        s.penalised[i] = o.is_none();
+        s.penalised[i] = o.is_none() && smoothable(positions[ErrorFunction::from_index(i).axis.index()]);
     }
     s
 }
@@ -279,7 +304,7 @@ pub fn auto_layout(
 ) -> (ModelLayout, [AxisKnots; 3], Smoothing) {
     let bound = positions_bound(&travel, positions, auto.max_intervals);
     let (layout, knots) = auto_layout_within(topology, travel, &bound, auto, overrides);
-    (layout, knots, smoothing_for(overrides))
+    (layout, knots, smoothing_for(overrides, bound.map(|b| b.1)))
 }
 
 /// Knot intervals of an axis whose readings' positions determine at most `most`: half as many
@@ -348,6 +373,7 @@ fn auto_layout_within(
         let (most, n) = bound[axis.index()];
         let intervals = most.min(auto.start_intervals.max(1));
         let (intervals, bound) = match widened(intervals, most, auto) {
+            _ if !smoothable(n) => (1, KnotBound::FewPositions),
             Some(to) => (to, KnotBound::Positions),
             None => (intervals, KnotBound::Data),
         };
@@ -535,7 +561,7 @@ fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
     let positions = crate::identify::DataSummary::positions_of(&obs.x);
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
     let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
-    let mut smoothing = smoothing_for(overrides);
+    let mut smoothing = smoothing_for(overrides, bound.map(|b| b.1));
     // The previous round's solution, knots, layout and directions left open: a refinement that
     // neither the readings' geometry nor the prior determines is undone.
     let mut previous: Option<(Solution, [AxisKnots; 3], ModelLayout, usize)> = None;
@@ -565,7 +591,11 @@ fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
                 let most = bound[a.index()].0;
                 let functions = auto_functions(a, overrides);
                 // An axis whose finer knots the readings and the prior did not determine is not tried again.
-                if k.intervals >= most || functions.is_empty() || k.tests.last().is_some_and(|t| !t.determined) {
+                if k.intervals >= most
+                    || k.bound == KnotBound::FewPositions
+                    || functions.is_empty()
+                    || k.tests.last().is_some_and(|t| !t.determined)
+                {
                     continue;
                 }
                 let to = (2 * k.intervals).min(most);
@@ -665,7 +695,7 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
     let mut screened: [Option<(usize, f64)>; 3] = [None; 3];
     for a in Axis::ALL {
         let functions: Vec<usize> = auto_functions(a, cx.overrides).iter().map(|f| f.index()).collect();
-        if functions.is_empty() {
+        if functions.is_empty() || chosen.knots[a.index()].bound == KnotBound::FewPositions {
             continue;
         }
         // The other axes' smoothing held, this axis's functions unpenalised.
@@ -700,7 +730,8 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
         return chosen;
     }
     let layout = layout_with(cx.topology, cx.travel, intervals, &reprs);
-    let smoothing = smoothing_for(cx.overrides).continued_from(&report);
+    let smoothing =
+        smoothing_for(cx.overrides, chosen.knots.each_ref().map(|k| k.positions)).continued_from(&report);
     let opts = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
     let Ok(f) = fit(&layout, cx.obs, &opts, &[]) else { return chosen };
     let final_gain = base_aic - aic(f.solution());
@@ -771,7 +802,7 @@ fn widen_at_bound(
             return None;
         }
         tried.push(intervals);
-        let mut smoothing = smoothing_for(cx.overrides);
+        let mut smoothing = smoothing_for(cx.overrides, bound.map(|b| b.1));
         if let Some(r) = &sol.smoothing {
             smoothing = smoothing.continued_from(r);
         }
@@ -835,6 +866,9 @@ fn widen_at_bound(
 /// (`auto.max_intervals`), or the knots are already beyond the positions (a tracer's 11 stops,
 /// widened from the start: more knots there and the solve no longer holds, [`beyond_positions`]).
 fn interpolated_between(k: &AxisKnots, most: usize, auto: &Auto) -> bool {
+    if k.bound == KnotBound::FewPositions {
+        return false;
+    }
     let refined = k.tests.iter().any(|t| t.refined);
     let short_of_bound = refined && k.intervals < most && 2 * k.intervals > most;
     (k.intervals == most || short_of_bound) && most < auto.max_intervals
@@ -850,6 +884,9 @@ fn finish(
     travel: Travel,
 ) -> AutoSolve {
     for (a, k) in knots.iter_mut().enumerate() {
+        if k.bound == KnotBound::FewPositions {
+            continue;
+        }
         k.bound = if k.intervals >= auto.max_intervals {
             KnotBound::Limit
         } else if k.intervals >= bound[a].0 {
@@ -1179,8 +1216,12 @@ mod tests {
         over[ErrorFunction::parse("EXX").unwrap().index()] = Some(Representation::Polynomial { degree: 3 });
         let (layout, knots, smoothing) = auto_layout(topo, travel, &dense, &Auto::default(), &over);
         assert_eq!((knots[0].intervals, knots[0].bound), (12, KnotBound::Data));
-        // Three positions determine a cubic only as far as a single interval goes.
-        assert_eq!((knots[2].determined, knots[2].intervals), (1, 2));
+        // Three positions say nothing of the roughness (a parabola passes through them): one
+        // interval, not smoothed, left open away from the positions.
+        assert_eq!((knots[2].determined, knots[2].intervals, knots[2].bound), (1, 1, KnotBound::FewPositions));
+        assert!(knots[2].describe().contains("not smoothed: the readings lie at 3 position(s)"), "{}", knots[2].describe());
+        assert!((12..18).all(|i| !smoothing.penalised[i]));
+        assert!((6..12).all(|i| smoothing.penalised[i]));
         assert_eq!(layout.basis(ErrorFunction::parse("EXX").unwrap()).repr, Representation::Polynomial { degree: 3 });
         assert!(!smoothing.penalised[ErrorFunction::parse("EXX").unwrap().index()]);
         // A gap: positions only in the first half of X cannot carry knots in the second.

@@ -217,6 +217,11 @@ impl Plan {
         if self.probe_offsets.is_empty() {
             return Err(PlanError("at least one probe offset is needed (use [0, 0, 0] for none)".into()));
         }
+        if self.stations.is_empty() && self.n_stations == Some(0) && self.reference_lines.is_empty() {
+            return Err(PlanError(
+                "n_stations is 0 and the plan lists no stations and no reference lines: it measures nothing".into(),
+            ));
+        }
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(self.acquisition.speed()) || !self.speeds_mps.iter().all(|&v| positive(v)) {
             return Err(PlanError("acquisition speeds must be positive numbers".into()));
@@ -585,6 +590,7 @@ mod tests {
             Plan { station_setup_s: f64::INFINITY, ..Plan::short() },
             Plan { points_per_beam: usize::MAX, ..Plan::short() },
             Plan { n_stations: Some(1_000_000), ..Plan::short() },
+            Plan { n_stations: Some(0), ..Plan::short() },
         ];
         for p in bad {
             assert!(p.beam_tasks(&travel).is_err(), "{p:?}");
@@ -593,6 +599,19 @@ mod tests {
         let e = tiny.path_tasks(&travel).unwrap_err();
         assert!(e.0.contains("stops along the edges"), "{e:?}");
         assert!(Plan::short().beam_tasks(&travel).is_ok() && Plan::paper_tracer().path_tasks(&travel).is_ok());
+        let nothing = Plan { n_stations: Some(0), ..Plan::short() }.validate().unwrap_err();
+        assert!(nothing.0.contains("it measures nothing"), "{nothing:?}");
+        let lines_only = Plan {
+            n_stations: Some(0),
+            reference_lines: vec![ReferenceLine {
+                axis: LineAxis::X,
+                through: [0.5, 0.4, -0.3],
+                probe_offset: [0.0; 3],
+                runs: Some(5),
+            }],
+            ..Plan::short()
+        };
+        assert!(lines_only.beam_tasks(&travel).is_ok_and(|t| t.len() == 5));
     }
 
     #[test]
