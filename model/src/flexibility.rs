@@ -78,9 +78,9 @@ pub enum KnotBound {
     Positions,
     /// The readings do not ask for finer knots (the refinement test).
     Data,
-    /// The readings lie at no more positions along the axis than a parabola passes through
-    /// ([`smoothable`]): they say nothing of the functions' roughness, so the functions are not
-    /// smoothed, one knot interval, and away from the positions the data leave them open.
+    /// The readings lie at too few positions along the axis to tell the functions' roughness
+    /// ([`smoothable`]): the functions are not smoothed, their knots leave one direction each
+    /// open ([`few_positions_intervals`]), and away from the positions the data leave them open.
     FewPositions,
 }
 
@@ -166,10 +166,11 @@ impl AxisKnots {
             }
             KnotBound::Data => "finer knots would not explain the readings better".to_string(),
             KnotBound::FewPositions => format!(
-                "not smoothed: the readings lie at {} position(s) along the axis, through which a parabola \
-                 passes whatever the errors, so they say nothing of the functions' roughness; away from those \
-                 positions the functions are not determined: measure at more positions along {}",
+                "not smoothed: the readings lie at {} position(s) along the axis, too few to tell how rough \
+                 the functions are (at least {} are needed); away from those positions the functions are not \
+                 determined: measure at more positions along {}",
                 self.positions,
+                MIN_SMOOTHED_POSITIONS,
                 self.axis.letter()
             ),
         };
@@ -267,17 +268,43 @@ fn auto_functions(axis: Axis, overrides: &[Option<Representation>; 18]) -> Vec<E
     (0..6).map(|m| ErrorFunction::from_index(axis.index() * 6 + m)).filter(|f| overrides[f.index()].is_none()).collect()
 }
 
+/// Fewest distinct positions along an axis whose readings smooth its functions: the
+/// roughness penalty's null space (the quadratics, [`crate::smoothing::PENALTY_ORDER`]) and
+/// three values beyond it, as many as the detail floor keeps ([`crate::smoothing`]).
+pub const MIN_SMOOTHED_POSITIONS: usize = crate::smoothing::PENALTY_ORDER + 3;
+
 /// Whether readings at `positions` distinct positions along an axis can tell how rough its
-/// functions are: more positions than the roughness penalty's null space has dimensions (the
-/// quadratics, [`crate::smoothing::PENALTY_ORDER`]). Through three values or fewer a parabola
-/// passes whatever the errors, so the readings leave the penalised part wholly to the prior:
-/// REML then takes the smoothing to its upper bound, the penalised normal matrix holds the
-/// readings' one value per position beside a penalty some 1e13 times larger, and the solve
-/// failed as singular (seen: a campaign whose readings hold Y at one position). Such an axis's
-/// functions are not smoothed: one knot interval, determined at the positions and, away from
-/// them, reported as not determined.
+/// functions are ([`MIN_SMOOTHED_POSITIONS`]).
+///
+/// Through three values or fewer a parabola passes whatever the errors: the readings leave
+/// the penalised part wholly to the prior, REML takes the smoothing to its upper bound, and
+/// the penalised normal matrix holds the readings' one value per position beside a penalty
+/// some 1e13 times larger. A campaign whose readings hold Y at one position failed as
+/// singular. With four or five the readings give one or two values of roughness, and REML's
+/// estimate from them states the functions between the positions far too sharply. Measured on
+/// a tracer with n stops per edge (the plan's default four stations), solved with the two-line machine file, its body
+/// diagonals and axis lines (21 targets each) against a simulated interferometer, seeds 1-20,
+/// the share of determined targets off by more than three standard uncertainties:
+/// - over the demo machine's polynomials, 12.7 % at four stops (largest 18.9) and 10.2 % at
+///   five (11.4), all between the stops, against 0 % at six and 0.04 % at eight;
+/// - over the paper's tables, 0.89 % at four (largest 3.68), 0 % at five and six.
+///
+/// Now, over the polynomials, 0 % at four (largest 2.76) and 0.18 % at five (3.04), over the
+/// tables 0 % at both;
+/// held out (the machine tool XFYZ, seeds 101-120, run once) 9.6 and 4.3 % became 0.71 and
+/// 0.18 %. The map is then given at the stops only.
+///
+/// Such an axis's functions are not smoothed; their knots leave one direction each open
+/// ([`few_positions_intervals`]): determined at the positions, not determined away from them.
 pub fn smoothable(positions: usize) -> bool {
-    positions > crate::smoothing::PENALTY_ORDER
+    positions >= MIN_SMOOTHED_POSITIONS
+}
+
+/// Knot intervals of an axis that is not [`smoothable`]: one coefficient more than its
+/// `positions`, so that the readings determine the functions' values at the positions and
+/// leave one direction each open between them (at least one interval).
+pub fn few_positions_intervals(positions: usize) -> usize {
+    positions.saturating_sub(2).max(1)
 }
 
 /// The smoothing of the auto layout: by REML, every function without an override whose axis
@@ -373,7 +400,7 @@ fn auto_layout_within(
         let (most, n) = bound[axis.index()];
         let intervals = most.min(auto.start_intervals.max(1));
         let (intervals, bound) = match widened(intervals, most, auto) {
-            _ if !smoothable(n) => (1, KnotBound::FewPositions),
+            _ if !smoothable(n) => (few_positions_intervals(n), KnotBound::FewPositions),
             Some(to) => (to, KnotBound::Positions),
             None => (intervals, KnotBound::Data),
         };
