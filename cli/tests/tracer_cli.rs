@@ -199,7 +199,8 @@ fn too_few_stops(stops: usize, step: &str, intervals: usize) {
     assert_eq!(summaries.len(), 4, "{out}");
     for l in summaries {
         assert!(l.contains(&format!("the data determine the prediction at {stops} of the 21 targets")), "{l}");
-        let en: f64 = l.split("max En ").nth(1).and_then(|t| t.split(' ').next()).and_then(|v| v.parse().ok()).expect(l);
+        let en: f64 =
+            l.split("max En ").nth(1).and_then(|t| t.split(' ').next()).and_then(|v| v.parse().ok()).expect(l);
         // En 1.5 is three standard uncertainties.
         assert!(en < 1.5, "{l}");
     }

@@ -307,7 +307,10 @@ impl Machine {
             }
         }
         if noise.tracer_ppm > MAX_NOISE_PPM {
-            bail!("field noise.tracer_ppm: {} ppm is no instrument's noise (expected at most {MAX_NOISE_PPM})", noise.tracer_ppm);
+            bail!(
+                "field noise.tracer_ppm: {} ppm is no instrument's noise (expected at most {MAX_NOISE_PPM})",
+                noise.tracer_ppm
+            );
         }
         if noise.interferometer_m == 0.0 && noise.repeatability_m == 0.0 {
             bail!("field noise: interferometer_m and repeatability_m cannot both be zero (they weight the readings)");

@@ -282,17 +282,17 @@ pub const MIN_SMOOTHED_POSITIONS: usize = crate::smoothing::PENALTY_ORDER + 3;
 /// some 1e13 times larger. A campaign whose readings hold Y at one position failed as
 /// singular. With four or five the readings give one or two values of roughness, and REML's
 /// estimate from them states the functions between the positions far too sharply. Measured on
-/// a tracer with n stops per edge (the plan's default four stations), solved with the two-line machine file, its body
-/// diagonals and axis lines (21 targets each) against a simulated interferometer, seeds 1-20,
-/// the share of determined targets off by more than three standard uncertainties:
+/// a tracer with n stops per edge (the plan's default four stations), solved with the two-line
+/// machine file, its body diagonals and axis lines (21 targets each) against a simulated
+/// interferometer, seeds 1-20, the share of determined targets off by more than three standard
+/// uncertainties:
 /// - over the demo machine's polynomials, 12.7 % at four stops (largest 18.9) and 10.2 % at
 ///   five (11.4), all between the stops, against 0 % at six and 0.04 % at eight;
 /// - over the paper's tables, 0.89 % at four (largest 3.68), 0 % at five and six.
 ///
 /// Now, over the polynomials, 0 % at four (largest 2.76) and 0.18 % at five (3.04), over the
-/// tables 0 % at both;
-/// held out (the machine tool XFYZ, seeds 101-120, run once) 9.6 and 4.3 % became 0.71 and
-/// 0.18 %. The map is then given at the stops only.
+/// tables 0 % at both; held out (the machine tool XFYZ, seeds 101-120, run once) 9.6 and 4.3 %
+/// became 0.71 and 0.18 %. The map is then given at the stops only.
 ///
 /// Such an axis's functions are not smoothed; their knots leave one direction each open
 /// ([`few_positions_intervals`]): determined at the positions, not determined away from them.
@@ -757,8 +757,7 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
         return chosen;
     }
     let layout = layout_with(cx.topology, cx.travel, intervals, &reprs);
-    let smoothing =
-        smoothing_for(cx.overrides, chosen.knots.each_ref().map(|k| k.positions)).continued_from(&report);
+    let smoothing = smoothing_for(cx.overrides, chosen.knots.each_ref().map(|k| k.positions)).continued_from(&report);
     let opts = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
     let Ok(f) = fit(&layout, cx.obs, &opts, &[]) else { return chosen };
     let final_gain = base_aic - aic(f.solution());
@@ -1246,7 +1245,11 @@ mod tests {
         // Three positions say nothing of the roughness (a parabola passes through them): one
         // interval, not smoothed, left open away from the positions.
         assert_eq!((knots[2].determined, knots[2].intervals, knots[2].bound), (1, 1, KnotBound::FewPositions));
-        assert!(knots[2].describe().contains("not smoothed: the readings lie at 3 position(s)"), "{}", knots[2].describe());
+        assert!(
+            knots[2].describe().contains("not smoothed: the readings lie at 3 position(s)"),
+            "{}",
+            knots[2].describe()
+        );
         assert!((12..18).all(|i| !smoothing.penalised[i]));
         assert!((6..12).all(|i| smoothing.penalised[i]));
         assert_eq!(layout.basis(ErrorFunction::parse("EXX").unwrap()).repr, Representation::Polynomial { degree: 3 });
