@@ -281,23 +281,19 @@ impl Machine {
                 .ok_or_else(|| anyhow::anyhow!("field gauge: unknown gauge {g:?} (expected patent or datum)"))?,
         };
         let noise = file.noise.unwrap_or_default();
-        for (name, v) in [
+        let lengths = [
             ("interferometer_m", noise.interferometer_m),
             ("repeatability_m", noise.repeatability_m),
             ("tracer_m", noise.tracer_m),
-            ("tracer_ppm", noise.tracer_ppm),
-        ] {
+        ];
+        for (name, v) in lengths.into_iter().chain([("tracer_ppm", noise.tracer_ppm)]) {
             if !(v.is_finite() && v >= 0.0) {
                 bail!("field noise.{name}: must be a non-negative number, got {v}");
             }
         }
         // The weights of the fit are 1 / noise^2: a noise of 1e-300 m made them overflow and
         // the solve end, 40 s later, in a singular-matrix error that named the readings.
-        for (name, v) in [
-            ("interferometer_m", noise.interferometer_m),
-            ("repeatability_m", noise.repeatability_m),
-            ("tracer_m", noise.tracer_m),
-        ] {
+        for (name, v) in lengths {
             if v != 0.0 && !(NOISE_M.0..=NOISE_M.1).contains(&v) {
                 bail!(
                     "field noise.{name}: {v:e} m is no instrument's noise (expected {:e} to {:e} m, or 0)",

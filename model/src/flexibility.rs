@@ -307,12 +307,13 @@ pub fn few_positions_intervals(positions: usize) -> usize {
     positions.saturating_sub(2).max(1)
 }
 
-/// The smoothing of the auto layout: by REML, every function without an override whose axis
-/// has readings at enough positions to tell its roughness (`positions`, per axis; [`smoothable`]).
-fn smoothing_for(overrides: &[Option<Representation>; 18], positions: [usize; 3]) -> Smoothing {
+/// The smoothing of the auto layout: by REML, every function without an override whose axis's
+/// `knots` are not bound by too few positions ([`KnotBound::FewPositions`], [`smoothable`]).
+fn smoothing_for(overrides: &[Option<Representation>; 18], knots: &[AxisKnots; 3]) -> Smoothing {
     let mut s = Smoothing::reml();
     for (i, o) in overrides.iter().enumerate() {
-        s.penalised[i] = o.is_none() && smoothable(positions[ErrorFunction::from_index(i).axis.index()]);
+        let axis = ErrorFunction::from_index(i).axis.index();
+        s.penalised[i] = o.is_none() && knots[axis].bound != KnotBound::FewPositions;
     }
     s
 }
@@ -331,7 +332,8 @@ pub fn auto_layout(
 ) -> (ModelLayout, [AxisKnots; 3], Smoothing) {
     let bound = positions_bound(&travel, positions, auto.max_intervals);
     let (layout, knots) = auto_layout_within(topology, travel, &bound, auto, overrides);
-    (layout, knots, smoothing_for(overrides, bound.map(|b| b.1)))
+    let smoothing = smoothing_for(overrides, &knots);
+    (layout, knots, smoothing)
 }
 
 /// Knot intervals of an axis whose readings' positions determine at most `most`: half as many
@@ -588,7 +590,7 @@ fn choose_knots(cx: &Context<'_>) -> Result<AutoSolve, SolveError> {
     let positions = crate::identify::DataSummary::positions_of(&obs.x);
     let bound = positions_bound(&travel, &positions, auto.max_intervals);
     let (_, mut knots) = auto_layout_within(topology.clone(), travel, &bound, auto, overrides);
-    let mut smoothing = smoothing_for(overrides, bound.map(|b| b.1));
+    let mut smoothing = smoothing_for(overrides, &knots);
     // The previous round's solution, knots, layout and directions left open: a refinement that
     // neither the readings' geometry nor the prior determines is undone.
     let mut previous: Option<(Solution, [AxisKnots; 3], ModelLayout, usize)> = None;
@@ -757,7 +759,7 @@ fn choose_tables(chosen: AutoSolve, cx: &Context<'_>) -> AutoSolve {
         return chosen;
     }
     let layout = layout_with(cx.topology, cx.travel, intervals, &reprs);
-    let smoothing = smoothing_for(cx.overrides, chosen.knots.each_ref().map(|k| k.positions)).continued_from(&report);
+    let smoothing = smoothing_for(cx.overrides, &chosen.knots).continued_from(&report);
     let opts = SolveOptions { smoothing: Some(smoothing), ..cx.opts.clone() };
     let Ok(f) = fit(&layout, cx.obs, &opts, &[]) else { return chosen };
     let final_gain = base_aic - aic(f.solution());
@@ -828,7 +830,7 @@ fn widen_at_bound(
             return None;
         }
         tried.push(intervals);
-        let mut smoothing = smoothing_for(cx.overrides, bound.map(|b| b.1));
+        let mut smoothing = smoothing_for(cx.overrides, &knots);
         if let Some(r) = &sol.smoothing {
             smoothing = smoothing.continued_from(r);
         }
