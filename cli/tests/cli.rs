@@ -377,6 +377,76 @@ fn rank_deficient_campaign_warns_and_exits_3() {
     assert!(t.contains("grid points") && t.contains("coarser step") && !t.contains("panicked"), "{t}");
 }
 
+/// A campaign of ISO 230-2 lines alone (no stations: one beam along each axis through a point,
+/// five runs each, each pointed anew by the deflector) fits to its noise with an explicit
+/// representation. The beams are tilted from the axes by the deflector's pointing (tens of
+/// microradians), so the readings see each line's straightness only through that tilt's
+/// cosine: the solve says so and leaves it undetermined. Before stop 81 the minimum-norm
+/// choice put metres of straightness where micrometres of positioning fit, and the solve
+/// ended 9 to 18 times the noise off (chi2/dof 83 to 309 on seeds 1-10; 154 and not
+/// converged on this one).
+///
+/// Machine-tool machine, seed 7: not one of the seeds the fix was developed on (1, the single
+/// lines of seed 1), nor one it was measured on first (2-10 after; all fit at chi2/dof 0.94 to
+/// 1.06).
+#[test]
+fn reference_lines_alone_fit_to_their_noise() {
+    let d = scratch("lines-alone");
+    let plan = d.join("plan.yaml");
+    std::fs::write(
+        &plan,
+        "n_stations: 0\npoints_per_beam: 50\nprobe_offsets: [[0, 0, 0]]\nreference_lines:\n\
+         \x20 - {axis: x, through: [0.4, 0.25, -0.25], runs: 5}\n\
+         \x20 - {axis: y, through: [0.4, 0.25, -0.25], runs: 5}\n\
+         \x20 - {axis: z, through: [0.4, 0.25, -0.25], runs: 5}\n",
+    )
+    .unwrap();
+    let tool = repo().join("launch_configs/machines/machine_tool_xfyz.yaml");
+    let c = d.join("c.csv");
+    let o = volcal(&[
+        "simulate",
+        "--machine",
+        tool.to_str().unwrap(),
+        "--plan",
+        plan.to_str().unwrap(),
+        "--seed",
+        "7",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let explicit = d.join("machine.yaml");
+    std::fs::write(
+        &explicit,
+        "topology: XFYZ\ntravel: {x: [0.0, 0.8], y: [0.0, 0.5], z: [-0.5, 0.0]}\n\
+         representation: {kind: bspline, intervals: 12}\n",
+    )
+    .unwrap();
+    let o = volcal(&[
+        "solve",
+        c.to_str().unwrap(),
+        "--machine",
+        explicit.to_str().unwrap(),
+        "--out",
+        d.join("m.json").to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(3), "{t}");
+    assert!(!t.contains("did not converge"), "{t}");
+    let chi2: f64 = t
+        .split("chi2/dof ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no chi2/dof in {t}"));
+    assert!(chi2 < 1.3, "the lines do not fit their noise (chi2/dof {chi2}): {t}");
+    assert!(t.contains("informed by the readings only through second-order effects"), "{t}");
+    // Z is the last axis and the line is at the tool point: its positioning is what the Z
+    // line measures, alone.
+    let ezz = t.lines().find(|l| l.contains("EZZ")).unwrap_or("");
+    assert!(ezz.contains("um") && !ezz.contains("EZZ    not determined"), "{t}");
+}
+
 /// `{kind: auto, tables: true}`: over the paper's linear tables (11 nodes per function), measured
 /// densely by beams, `volcal solve` takes linear tables of 10 intervals on every axis, says so
 /// and why, and the model file keeps the choice with its layout; without the option (the

@@ -82,6 +82,11 @@ impl Travel {
         hi - lo
     }
 
+    /// Length of the working volume's diagonal.
+    pub fn diagonal(&self) -> f64 {
+        (self.max_corner() - self.min_corner()).norm()
+    }
+
     /// Lower corner of the working volume.
     pub fn min_corner(&self) -> Point3<f64> {
         Point3::new(self.ranges[0][0], self.ranges[1][0], self.ranges[2][0])

@@ -331,6 +331,11 @@ struct Problem<'a> {
     /// Roughness penalty on the model coefficients (smoothing), with its current parameters.
     penalty: Option<Penalty>,
     beam_alignment: BeamAlignment,
+    /// Least column scale of each parameter (see [`column_scale`]).
+    scale_floor: Vec<f64>,
+    /// Mean square displacement of the reflector over the readings per pair of parameters
+    /// ([`displacement_gram`]).
+    displacement: Mat<f64>,
 }
 
 impl Problem<'_> {
@@ -1026,7 +1031,11 @@ pub fn fit<'a>(
         structure,
         penalty,
         beam_alignment: opts.beam_alignment,
+        scale_floor: Vec::new(),
+        displacement: Mat::zeros(0, 0),
     };
+    prob.displacement = displacement_gram(&prob);
+    prob.scale_floor = scale_floor(&prob);
     let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
     update_directions(&prob, &mut state);
 
@@ -1034,7 +1043,7 @@ pub fn fit<'a>(
     let n = prob.dims.n();
     let cons = embed(&gauge::constraints(layout, opts.gauge), n);
     let first = assemble(&prob, &state);
-    let scale = column_scale(&first.n);
+    let scale = column_scale(&first.n, &prob.scale_floor);
     let gauge_z = NullSpace::new(&cons, &scale);
     let m0 = reduced_matrix(&first, &gauge_z, &scale, None);
     let f0 = Reduced::from_matrix(m0.clone(), 0.0).ok();
@@ -1105,7 +1114,7 @@ pub fn fit<'a>(
         nominal.d[..layout.n_params].fill(0.0);
         update_directions(&prob, &mut nominal);
         let normal_nom = assemble(&prob, &nominal);
-        let scale_nom = column_scale(&normal_nom.n);
+        let scale_nom = column_scale(&normal_nom.n, &prob.scale_floor);
         let z_nom = NullSpace::new(&cons, &scale_nom);
         let m_nom = reduced_matrix(&normal_nom, &z_nom, &scale_nom, None);
         let mut ident_f =
@@ -1128,7 +1137,7 @@ pub fn fit<'a>(
             }
             update_directions(&prob, &mut state);
             normal = assemble(&prob, &state);
-            scale = column_scale(&normal.n);
+            scale = column_scale(&normal.n, &prob.scale_floor);
             z = NullSpace::new(&stack_rows(&cons, w), &scale);
             lm = lm.and_again(&prob, &mut state, &mut normal, &z, &scale, opts, nonlinear)?;
             for w in &ident_f.report.warnings {
@@ -1474,7 +1483,15 @@ fn prior_covered(
     // The data's null space in reduced coordinates, orthonormal.
     let w = Mat::from_fn(n, k0, |i, j| ident.directions[(i, j)] * scale[i]);
     let v = gz.zt(&w);
-    let mut m = m0.clone();
+    // What the readings inform only beyond the linearisation horizon is no information here:
+    // only the prior can determine it.
+    let mut m = if ident.far > 0 {
+        let vf = v.subcols(k0 - ident.far, ident.far);
+        let p = Mat::<f64>::identity(v.nrows(), v.nrows()) - vf * vf.transpose();
+        &p * m0 * &p
+    } else {
+        m0.clone()
+    };
     let nr = m.nrows();
     let md = (0..nr).map(|i| m0[(i, i)]).sum::<f64>() / nr.max(1) as f64;
     let mut unobserved = Vec::new();
@@ -1507,6 +1524,8 @@ fn prior_covered(
     let wn = gz.z(&vn);
     ident.extra_constraints = Mat::from_fn(wn.ncols(), n, |r, k| wn[(k, r)] * scale[k]);
     ident.directions = Mat::from_fn(n, wn.ncols(), |k, r| wn[(k, r)] / scale[k]);
+    // The columns are the null space of readings and prior now.
+    ident.far = 0;
     if null.len() < k0 {
         identify::restate(prob.layout, n_full, &wn, &mut ident);
     }
@@ -1728,7 +1747,24 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
         station_col: p.dims.n_u,
         axis_positions: identify::DataSummary::positions_of(&p.obs.x),
         readings_in_station_plane: 0,
+        horizon_m: horizon(p),
     }
+}
+
+/// The linearisation horizon of the readings taking part (see `identify::beyond_horizon`),
+/// from the travel's diagonal and their median noise.
+fn horizon(p: &Problem<'_>) -> f64 {
+    let mut sigma: Vec<f64> = (0..p.obs.groups.len())
+        .filter(|&g| p.active[g])
+        .flat_map(|g| p.obs.groups[g].range())
+        .map(|i| p.sigma[i])
+        .collect();
+    if sigma.is_empty() {
+        return 0.0;
+    }
+    sigma.sort_by(f64::total_cmp);
+    (2.0 * p.layout.travel.diagonal() * sigma[sigma.len() / 2] * identify::HORIZON_NOISE_FRACTION).sqrt()
+        / identify::HORIZON_COVERAGE
 }
 
 /// Geometry of the tracer stations at the current iterate and of the points they measured.
@@ -1760,7 +1796,7 @@ fn analyse_at(
     let geometry = (!prob.dims.stations.is_empty()).then(|| tracer_geometry(prob, state));
     let mut summary = prob_summary(prob);
     summary.readings_in_station_plane = geometry.as_ref().map_or(0, |g| g.readings_in_plane);
-    let mut ident = identify::analyse(prob.layout, &summary, n, m, m_llt, z, scale, tol);
+    let mut ident = identify::analyse(prob.layout, &summary, n, m, m_llt, z, scale, &prob.displacement, tol);
     if let Some(geometry) = geometry {
         let said = geometry.statements();
         if !said.is_empty() {
@@ -1775,7 +1811,7 @@ fn analyse_at(
             ));
         }
         ident.report.statements.extend(said.iter().cloned());
-        ident.appended = said;
+        ident.appended.extend(said);
     }
     ident
 }
@@ -2139,8 +2175,83 @@ struct Residuals {
 }
 
 /// Jacobi scaling `s_k = sqrt(N_kk)` (1 for unobserved columns).
-fn column_scale(n: &Mat<f64>) -> Vec<f64> {
-    (0..n.nrows()).map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt() } else { 1.0 }).collect()
+///
+/// A parameter the readings inform only weakly is scaled as if they informed it to the
+/// linearisation horizon (`floor`, from [`scale_floor`]; empty: none). Why: Jacobi scaling makes
+/// every column's own information one, so an error the readings see only through a beam's
+/// tilt of a few microradians (a straightness along an ISO 230-2 line) would weigh as much as
+/// the positioning they measure. The minimum-norm choice along what they determine only in
+/// combination would then put metres of straightness where micrometres of positioning fit,
+/// far outside the linearisation (found on a campaign of reference lines alone).
+fn column_scale(n: &Mat<f64>, floor: &[f64]) -> Vec<f64> {
+    (0..n.nrows())
+        .map(|k| if n[(k, k)] > 0.0 { n[(k, k)].sqrt().max(floor.get(k).copied().unwrap_or(0.0)) } else { 1.0 })
+        .collect()
+}
+
+/// The information per unit of each parameter at which its standard uncertainty, as a
+/// displacement, is the linearisation horizon (`identify::beyond_horizon`): the square root of
+/// that information. Zero where there is no horizon (no readings, or noise-free ones).
+fn scale_floor(p: &Problem<'_>) -> Vec<f64> {
+    let summary = prob_summary(p);
+    if !(summary.horizon_m > 0.0 && summary.horizon_m.is_finite()) {
+        return Vec::new();
+    }
+    let arm = p.layout.travel.diagonal() + summary.probe_offsets.iter().map(|o| o.norm()).fold(0.0, f64::max);
+    (0..p.dims.n())
+        .map(|k| {
+            // The largest displacement of a unit: a metre of translation, a radian over the
+            // largest lever arm, a metre of station coordinate; effect parameters none.
+            let unit = if k < p.dims.n_u {
+                match p.layout.owner(k) {
+                    crate::model::ParamOwner::Function(f, _) if f.motion == crate::functions::Motion::Translation => 1.0,
+                    _ => arm,
+                }
+            } else if k < p.dims.effect_col() {
+                1.0
+            } else {
+                0.0
+            };
+            unit / summary.horizon_m
+        })
+        .collect()
+}
+
+/// Readings sampled for [`displacement_gram`]: enough for a mean over smooth functions of the
+/// position (a few per beam of the patent's plan), few enough to cost about a millisecond.
+const DISPLACEMENT_SAMPLES: usize = 200;
+
+/// The mean square displacement of the reflector over the readings taking part, per pair of
+/// parameters: `G = mean_i S_i^T S_i` with `S_i` the sensitivity of the reflector's position at
+/// reading `i` (`dim x dim`, unscaled). A tracer station's coordinates displace its ranges as
+/// the reflector does; effect parameters are not displacements. Every k-th reading, at most
+/// [`DISPLACEMENT_SAMPLES`] of them. Why: what the linearisation horizon bounds is how far the
+/// reflector moves where it was read (`identify::beyond_horizon`), not the coefficients: a
+/// direction that trades an angle against a straightness can be large in both and move the
+/// reflector little.
+fn displacement_gram(p: &Problem<'_>) -> Mat<f64> {
+    let n = p.dims.n();
+    let mut g = Mat::<f64>::zeros(n, n);
+    let readings: Vec<usize> = (0..p.obs.groups.len()).filter(|&k| p.active[k]).flat_map(|k| p.obs.groups[k].range()).collect();
+    let stride = readings.len().div_ceil(DISPLACEMENT_SAMPLES).max(1);
+    let mut s = crate::model::Sensitivity::default();
+    let mut count = 0usize;
+    for &i in readings.iter().step_by(stride) {
+        p.layout.sensitivity_into(&p.obs.x[i], &p.obs.p[i], &mut s);
+        for (&a, da) in s.idx.iter().zip(&s.dedu) {
+            for (&b, db) in s.idx.iter().zip(&s.dedu) {
+                g[(a, b)] += da.dot(db);
+            }
+        }
+        count += 1;
+    }
+    if count > 0 {
+        g = &g * (1.0 / count as f64);
+    }
+    for k in p.dims.n_u..p.dims.effect_col() {
+        g[(k, k)] = 1.0;
+    }
+    g
 }
 
 /// Embeds a constraint block on `u` into the full parameter space.
@@ -2344,6 +2455,8 @@ mod tests {
             active: vec![true; obs.groups.len()],
             penalty: None,
             beam_alignment: BeamAlignment::Motion,
+            scale_floor: Vec::new(),
+            displacement: Mat::zeros(0, 0),
         };
         assert!(prob.structure.is_some());
         let mut st = State {
@@ -2379,7 +2492,7 @@ mod tests {
         let ev = fast.n.self_adjoint_eigenvalues(Side::Lower).unwrap();
         let emax = ev.iter().cloned().fold(0.0, f64::max);
         assert!(ev[0] > -1e-10 * emax, "normal matrix not PSD: {} relative", ev[0] / emax);
-        let sc = column_scale(&fast.n);
+        let sc = column_scale(&fast.n, &[]);
         let z = NullSpace::new(&embed(&gauge::constraints(&layout, Gauge::Patent), n), &sc);
         let m = reduced_matrix(&fast, &z, &sc, None);
         let evm = m.self_adjoint_eigenvalues(Side::Lower).unwrap();
@@ -2442,6 +2555,8 @@ mod tests {
             active: vec![true; obs.groups.len()],
             penalty: None,
             beam_alignment: BeamAlignment::Motion,
+            scale_floor: Vec::new(),
+            displacement: Mat::zeros(0, 0),
         };
         assert!(prob.structure.is_some());
         let n = prob.dims.n();
