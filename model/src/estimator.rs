@@ -2204,7 +2204,9 @@ fn scale_floor(p: &Problem<'_>) -> Vec<f64> {
             // largest lever arm, a metre of station coordinate; effect parameters none.
             let unit = if k < p.dims.n_u {
                 match p.layout.owner(k) {
-                    crate::model::ParamOwner::Function(f, _) if f.motion == crate::functions::Motion::Translation => 1.0,
+                    crate::model::ParamOwner::Function(f, _) if f.motion == crate::functions::Motion::Translation => {
+                        1.0
+                    }
                     _ => arm,
                 }
             } else if k < p.dims.effect_col() {
@@ -2232,7 +2234,8 @@ const DISPLACEMENT_SAMPLES: usize = 200;
 fn displacement_gram(p: &Problem<'_>) -> Mat<f64> {
     let n = p.dims.n();
     let mut g = Mat::<f64>::zeros(n, n);
-    let readings: Vec<usize> = (0..p.obs.groups.len()).filter(|&k| p.active[k]).flat_map(|k| p.obs.groups[k].range()).collect();
+    let readings: Vec<usize> =
+        (0..p.obs.groups.len()).filter(|&k| p.active[k]).flat_map(|k| p.obs.groups[k].range()).collect();
     let stride = readings.len().div_ceil(DISPLACEMENT_SAMPLES).max(1);
     let mut s = crate::model::Sensitivity::default();
     let mut count = 0usize;

@@ -264,7 +264,11 @@ fn finish(
             far.ncols(),
             summary.horizon_m * 1e6
         ));
-        Mat::from_fn(dim, w.ncols() + far.ncols(), |k, c| if c < w.ncols() { w[(k, c)] } else { far[(k, c - w.ncols())] })
+        Mat::from_fn(
+            dim,
+            w.ncols() + far.ncols(),
+            |k, c| if c < w.ncols() { w[(k, c)] } else { far[(k, c - w.ncols())] },
+        )
     } else {
         w
     };
