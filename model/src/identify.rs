@@ -303,7 +303,7 @@ pub(crate) const HORIZON_NOISE_FRACTION: f64 = 0.01;
 /// diagonal `L`, `(3 h)^2 / (2 L) = sigma / 100`. A displacement is the reflector's, at the
 /// readings (root mean square). A campaign that measures a direction at all determines it far
 /// within: h is 22 um for the machine tool's travel at 0.2 um noise, and the patent's plan on
-/// the demo machine determines every direction to 0.4 % of its h. Over ISO 230-2 lines alone
+/// the demo machine determines every direction to 1.3 % of its h. Over ISO 230-2 lines alone
 /// (the machine tool, three lines of five runs) the directions fall in two groups 3 000 times
 /// apart, the one from 0.9 to 100 times the 70 um of a tenth of the noise, the other below 0.03
 /// um: the hundredth puts the horizon well inside that gap.
