@@ -331,6 +331,8 @@ struct Problem<'a> {
     /// Roughness penalty on the model coefficients (smoothing), with its current parameters.
     penalty: Option<Penalty>,
     beam_alignment: BeamAlignment,
+    /// The readings' linearisation horizon, metres ([`horizon`]); fixed with the readings.
+    horizon_m: f64,
     /// Least column scale of each parameter (see [`column_scale`]).
     scale_floor: Vec<f64>,
     /// Mean square displacement of the reflector over the readings per pair of parameters
@@ -1031,9 +1033,11 @@ pub fn fit<'a>(
         structure,
         penalty,
         beam_alignment: opts.beam_alignment,
+        horizon_m: 0.0,
         scale_floor: Vec::new(),
         displacement: Mat::zeros(0, 0),
     };
+    prob.horizon_m = horizon(&prob);
     prob.displacement = displacement_gram(&prob);
     prob.scale_floor = scale_floor(&prob);
     let mut state = State { d, dirs: vec![Vector3::zeros(); obs.groups.len()], actual: Vec::new(), frames: Vec::new() };
@@ -1747,7 +1751,7 @@ fn prob_summary(p: &Problem<'_>) -> identify::DataSummary {
         station_col: p.dims.n_u,
         axis_positions: identify::DataSummary::positions_of(&p.obs.x),
         readings_in_station_plane: 0,
-        horizon_m: horizon(p),
+        horizon_m: p.horizon_m,
     }
 }
 
@@ -2193,11 +2197,11 @@ fn column_scale(n: &Mat<f64>, floor: &[f64]) -> Vec<f64> {
 /// displacement, is the linearisation horizon (`identify::beyond_horizon`): the square root of
 /// that information. Zero where there is no horizon (no readings, or noise-free ones).
 fn scale_floor(p: &Problem<'_>) -> Vec<f64> {
-    let summary = prob_summary(p);
-    if !(summary.horizon_m > 0.0 && summary.horizon_m.is_finite()) {
+    let h = p.horizon_m;
+    if !(h > 0.0 && h.is_finite()) {
         return Vec::new();
     }
-    let arm = p.layout.travel.diagonal() + summary.probe_offsets.iter().map(|o| o.norm()).fold(0.0, f64::max);
+    let arm = p.layout.travel.diagonal() + p.obs.p.iter().map(|o| o.norm()).fold(0.0, f64::max);
     (0..p.dims.n())
         .map(|k| {
             // The largest displacement of a unit: a metre of translation, a radian over the
@@ -2214,7 +2218,7 @@ fn scale_floor(p: &Problem<'_>) -> Vec<f64> {
             } else {
                 0.0
             };
-            unit / summary.horizon_m
+            unit / h
         })
         .collect()
 }
@@ -2458,6 +2462,7 @@ mod tests {
             active: vec![true; obs.groups.len()],
             penalty: None,
             beam_alignment: BeamAlignment::Motion,
+            horizon_m: 0.0,
             scale_floor: Vec::new(),
             displacement: Mat::zeros(0, 0),
         };
@@ -2558,6 +2563,7 @@ mod tests {
             active: vec![true; obs.groups.len()],
             penalty: None,
             beam_alignment: BeamAlignment::Motion,
+            horizon_m: 0.0,
             scale_floor: Vec::new(),
             displacement: Mat::zeros(0, 0),
         };
